@@ -1,0 +1,248 @@
+"""Tests of the Image <-> NumPy conversion that replaces cv_bridge."""
+
+import array
+import re
+from types import SimpleNamespace
+
+from followbot.image_conversion import array_to_image
+from followbot.image_conversion import CHANNELS_BY_ENCODING
+from followbot.image_conversion import image_to_array
+from followbot.image_conversion import ImageConversionError
+from followbot.image_conversion import SUPPORTED_ENCODINGS
+from followbot.image_conversion import to_bgr
+import numpy as np
+import pytest
+from sensor_msgs.msg import Image
+from std_msgs.msg import Header
+
+SIZES_HW = ((1, 1), (3, 5), (4, 7), (480, 640))
+PADDING_BYTES = 7
+GARBAGE_BYTE = 0xAB
+
+# One known pixel, the course's yellow RGB(255, 246, 0), in each encoding's channel order,
+# with the BGR it must convert to.
+YELLOW_BY_ENCODING = {
+    'bgr8': ((0, 246, 255), (0, 246, 255)),
+    'rgb8': ((255, 246, 0), (0, 246, 255)),
+    'bgra8': ((0, 246, 255, 200), (0, 246, 255)),
+    'rgba8': ((255, 246, 0, 200), (0, 246, 255)),
+    'mono8': (116, (116, 116, 116)),
+}
+
+
+def random_image(height, width, encoding, seed=0):
+    """Return a random uint8 array of the shape an encoding needs."""
+    channels = CHANNELS_BY_ENCODING[encoding]
+    shape = (height, width) if channels == 1 else (height, width, channels)
+    return np.random.default_rng(seed).integers(0, 256, size=shape, dtype=np.uint8)
+
+
+def padded_message(image, encoding, padding_bytes=PADDING_BYTES):
+    """Return an Image whose rows carry garbage padding after the pixels."""
+    height, width = image.shape[:2]
+    row_bytes = width * CHANNELS_BY_ENCODING[encoding]
+    step = row_bytes + padding_bytes
+    rows = np.full((height, step), GARBAGE_BYTE, dtype=np.uint8)
+    rows[:, :row_bytes] = image.reshape(height, row_bytes)
+    return Image(
+        height=height, width=width, encoding=encoding, is_bigendian=0, step=step,
+        data=array.array('B', rows.tobytes()))
+
+
+def fake_message(**overrides):
+    """Return a message-like object describing a valid 2x2 bgr8 image, with overrides."""
+    fields = {
+        'height': 2, 'width': 2, 'encoding': 'bgr8', 'is_bigendian': 0, 'step': 6,
+        'data': bytes(12),
+    }
+    fields.update(overrides)
+    return SimpleNamespace(**fields)
+
+
+@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+@pytest.mark.parametrize('height, width', SIZES_HW)
+def test_round_trip(encoding, height, width):
+    image = random_image(height, width, encoding)
+    msg = array_to_image(image, encoding)
+    assert (msg.height, msg.width, msg.encoding) == (height, width, encoding)
+    assert msg.step == width * CHANNELS_BY_ENCODING[encoding]
+    assert msg.is_bigendian == 0
+    assert len(msg.data) == msg.step * height
+    np.testing.assert_array_equal(image_to_array(msg), image)
+
+
+@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+@pytest.mark.parametrize('height, width', SIZES_HW)
+def test_padded_step_skips_the_padding(encoding, height, width):
+    image = random_image(height, width, encoding, seed=1)
+    result = image_to_array(padded_message(image, encoding))
+    np.testing.assert_array_equal(result, image)
+
+
+@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+def test_padded_step_garbage_does_not_reach_bgr(encoding):
+    image = np.zeros(random_image(3, 5, encoding).shape, dtype=np.uint8)
+    result = to_bgr(image_to_array(padded_message(image, encoding)), encoding)
+    assert not np.any(result == GARBAGE_BYTE)
+
+
+def test_image_to_array_views_the_message_data_without_copying():
+    msg = array_to_image(random_image(4, 6, 'bgr8'), 'bgr8')
+    result = image_to_array(msg)
+    assert isinstance(msg.data, array.array)
+    assert np.shares_memory(result, np.frombuffer(msg.data, dtype=np.uint8))
+
+
+def test_image_to_array_result_is_read_only():
+    result = image_to_array(array_to_image(random_image(2, 3, 'rgb8'), 'rgb8'))
+    with pytest.raises(ValueError):
+        result[0, 0, 0] = 1
+
+
+@pytest.mark.parametrize('is_bigendian', (0, 1, False, True))
+def test_image_to_array_ignores_byte_order_of_8_bit_data(is_bigendian):
+    image = random_image(3, 4, 'rgba8')
+    msg = array_to_image(image, 'rgba8')
+    msg.is_bigendian = is_bigendian
+    np.testing.assert_array_equal(image_to_array(msg), image)
+
+
+@pytest.mark.parametrize('data_type', (bytes, bytearray, list, array.array))
+def test_image_to_array_accepts_message_like_objects(data_type):
+    pixels = list(range(12))
+    data = array.array('B', pixels) if data_type is array.array else data_type(pixels)
+    result = image_to_array(fake_message(data=data))
+    np.testing.assert_array_equal(result, np.arange(12, dtype=np.uint8).reshape(2, 2, 3))
+
+
+def test_image_to_array_accepts_data_longer_than_needed():
+    result = image_to_array(fake_message(data=bytes(range(20))))
+    np.testing.assert_array_equal(result.reshape(-1), np.arange(12, dtype=np.uint8))
+
+
+def test_real_image_message_round_trip_keeps_header():
+    header = Header(frame_id='camera_optical_frame')
+    msg = Image(header=header)
+    image = random_image(480, 640, 'bgr8')
+    filled = array_to_image(image, 'bgr8', msg)
+    assert filled is msg
+    assert filled.header.frame_id == 'camera_optical_frame'
+    assert isinstance(filled.data, array.array)
+    np.testing.assert_array_equal(image_to_array(filled), image)
+
+
+def test_array_to_image_accepts_checked_message_fields():
+    msg = Image(check_fields=True)
+    image = random_image(5, 3, 'mono8')
+    array_to_image(image, 'mono8', msg)
+    np.testing.assert_array_equal(image_to_array(msg), image)
+
+
+def test_array_to_image_refills_a_message_of_the_same_size_in_place():
+    msg = array_to_image(random_image(4, 5, 'rgb8', seed=3), 'rgb8')
+    data = msg.data
+    image = random_image(4, 5, 'rgb8', seed=4)
+    assert array_to_image(image, 'rgb8', msg) is msg
+    assert msg.data is data
+    np.testing.assert_array_equal(image_to_array(msg), image)
+
+
+def test_array_to_image_refills_a_message_of_another_size():
+    msg = array_to_image(random_image(4, 5, 'rgb8'), 'rgb8')
+    image = random_image(3, 2, 'mono8')
+    array_to_image(image, 'mono8', msg)
+    assert (msg.height, msg.width, msg.step, msg.encoding) == (3, 2, 2, 'mono8')
+    np.testing.assert_array_equal(image_to_array(msg), image)
+
+
+def test_array_to_image_refills_a_message_from_a_view_of_its_own_data():
+    image = random_image(4, 5, 'bgr8', seed=5)
+    msg = array_to_image(image, 'bgr8')
+    array_to_image(image_to_array(msg)[:, ::-1], 'bgr8', msg)
+    np.testing.assert_array_equal(image_to_array(msg), image[:, ::-1])
+
+
+def test_array_to_image_packs_non_contiguous_arrays():
+    image = random_image(6, 8, 'bgr8')
+    view = image[::2, ::-1]
+    np.testing.assert_array_equal(image_to_array(array_to_image(view, 'bgr8')), view)
+
+
+@pytest.mark.parametrize('overrides, message_part', (
+    ({'encoding': 'yuv422'}, "Unsupported encoding 'yuv422'"),
+    ({'encoding': '16UC1'}, 'supported encodings are bgr8, rgb8, bgra8, rgba8, mono8'),
+    ({'data': bytes(11)}, 'data length 11 is shorter than step*height 12'),
+    ({'data': array.array('B')}, 'data length 0 is shorter than step*height 12'),
+    ({'step': 5}, 'step 5 is smaller than width*channels 6'),
+    ({'width': 0, 'step': 0}, 'zero size'),
+    ({'height': 0, 'data': b''}, 'zero size'),
+    ({'data': [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 256]}, 'not a sequence of bytes'),
+    ({'data': 'twelve chars'}, 'not a sequence of bytes'),
+))
+def test_image_to_array_rejects_bad_messages(overrides, message_part):
+    with pytest.raises(ImageConversionError, match=re.escape(message_part)):
+        image_to_array(fake_message(**overrides))
+
+
+@pytest.mark.parametrize('image, encoding, message_part', (
+    (np.zeros((2, 2, 3), np.uint8), 'yuv422', 'Unsupported encoding'),
+    (np.zeros((2, 2, 3), np.uint16), 'bgr8', 'dtype uint16'),
+    (np.zeros((2, 2, 3), np.float32), 'rgb8', 'dtype float32'),
+    (np.zeros((2, 2), np.uint8), 'bgr8', r'shape \(H, W, 3\)'),
+    (np.zeros((2, 2, 4), np.uint8), 'bgr8', r'shape \(H, W, 3\)'),
+    (np.zeros((2, 2, 3), np.uint8), 'rgba8', r'shape \(H, W, 4\)'),
+    (np.zeros((2, 2, 1), np.uint8), 'mono8', r'shape \(H, W\)'),
+    (np.zeros(6, np.uint8), 'mono8', r'shape \(H, W\)'),
+    (np.zeros((0, 2, 3), np.uint8), 'bgr8', 'zero size'),
+    (np.zeros((2, 0), np.uint8), 'mono8', 'zero size'),
+    ([[0, 0], [0, 0]], 'mono8', 'numpy.ndarray'),
+))
+def test_array_to_image_rejects_bad_arrays(image, encoding, message_part):
+    with pytest.raises(ImageConversionError, match=message_part):
+        array_to_image(image, encoding)
+
+
+def test_conversion_error_is_a_value_error():
+    assert issubclass(ImageConversionError, ValueError)
+
+
+@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+def test_to_bgr_converts_a_known_pixel(encoding):
+    pixel, expected_bgr = YELLOW_BY_ENCODING[encoding]
+    image = np.zeros(random_image(2, 3, encoding).shape, dtype=np.uint8)
+    image[1, 2] = pixel
+    result = to_bgr(image, encoding)
+    assert result.shape == (2, 3, 3)
+    assert result.dtype == np.uint8
+    assert result.flags.c_contiguous
+    assert tuple(result[1, 2]) == expected_bgr
+
+
+@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+def test_to_bgr_works_on_row_slices_of_padded_images(encoding):
+    image = random_image(10, 9, encoding, seed=2)
+    view = image_to_array(padded_message(image, encoding))
+    np.testing.assert_array_equal(to_bgr(view[4:7], encoding), to_bgr(image, encoding)[4:7])
+
+
+def test_to_bgr_returns_contiguous_bgr8_as_is():
+    image = random_image(4, 5, 'bgr8')
+    assert to_bgr(image, 'bgr8') is image
+
+
+def test_to_bgr_copies_non_contiguous_bgr8():
+    image = random_image(4, 5, 'bgr8')
+    view = image[:, 1:4]
+    result = to_bgr(view, 'bgr8')
+    assert result.flags.c_contiguous
+    np.testing.assert_array_equal(result, view)
+
+
+@pytest.mark.parametrize('image, encoding', (
+    (np.zeros((2, 2, 3), np.uint8), 'mono16'),
+    (np.zeros((2, 2, 3), np.uint8), 'mono8'),
+    (np.zeros((2, 2, 3), np.int16), 'bgr8'),
+))
+def test_to_bgr_rejects_bad_arrays(image, encoding):
+    with pytest.raises(ImageConversionError):
+        to_bgr(image, encoding)
