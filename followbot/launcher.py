@@ -1,0 +1,276 @@
+"""
+The ``followbot`` command: start the simulator and the follower and watch them lap the course.
+
+The two nodes run as separate processes that talk over DDS only, as they would on a robot. This
+process supervises them (prefixed logs, Ctrl-C forwarded, no orphans, non-zero exit when a child
+fails) and runs a small monitor node that turns the simulator's ground-truth score into
+progress lines and, on request, saves pictures of the camera's debug view and of the course.
+"""
+
+import argparse
+import ctypes
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import cv2
+from diagnostic_msgs.msg import DiagnosticArray
+from followbot.image_conversion import image_to_array, to_bgr
+from followbot_sim.sim_node import SCORE_STATUS_NAME
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import Image
+
+# Linux: have the kernel send SIGTERM to a child when this process dies, even by SIGKILL.
+PR_SET_PDEATHSIG = 1
+STOP_GRACE_S = 5.0
+MONITOR_SPIN_S = 0.1
+REPORT_TOLERANCE_S = 1e-3
+DEBUG_IMAGE_TOPIC = 'follower/debug_image'
+OVERVIEW_IMAGE_TOPIC = 'overview/image'
+CAMERA_PICTURE = 'camera_debug.png'
+OVERVIEW_PICTURE = 'overview.png'
+
+
+def _die_with_parent():
+    libc = ctypes.CDLL('libc.so.6', use_errno=True)
+    libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def parse_arguments(argv=None) -> argparse.Namespace:
+    """
+    Read the command line.
+
+    :param argv: arguments without the program name; ``sys.argv[1:]`` when None.
+    :return: the parsed options.
+    """
+    parser = argparse.ArgumentParser(
+        prog='followbot',
+        description='Run the MuJoCo simulator and the line follower as two ROS 2 processes '
+                    'and report laps, lap times and distance from the line.')
+    parser.add_argument('--duration', type=float, default=240.0, metavar='SECONDS',
+                        help='simulated seconds to run; 0 runs until Ctrl-C (default: 240)')
+    parser.add_argument('--real-time-factor', type=float, default=1.0, metavar='FACTOR',
+                        help='simulated seconds per wall second; 0 = as fast as the machine '
+                             'allows (default: 1)')
+    parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
+                        help="ROS_DOMAIN_ID for both nodes (default: the environment's, or 0)")
+    parser.add_argument('--course', default='book_loop', help='built-in course name')
+    parser.add_argument('--report-period', type=float, default=10.0, metavar='SECONDS',
+                        help='simulated seconds between progress lines (default: 10)')
+    parser.add_argument('--pictures-dir', type=Path, default=None, metavar='DIR',
+                        help=f"save {CAMERA_PICTURE} (camera view with the follower's "
+                             f'overlay) and {OVERVIEW_PICTURE} (course from above with the '
+                             'path driven) here while running')
+    options = parser.parse_args(argv)
+    if options.duration < 0 or options.real_time_factor < 0 or options.report_period <= 0:
+        parser.error('--duration and --real-time-factor must be >= 0, --report-period > 0')
+    if options.domain_id is not None and not 0 <= options.domain_id <= 232:
+        parser.error('--domain-id must be in 0..232')
+    return options
+
+
+class ChildProcess:
+    """A node process whose output lines are forwarded with a name prefix."""
+
+    def __init__(self, name: str, command: list, environment: dict):
+        """
+        Start the process.
+
+        :param name: short name used as the log prefix.
+        :param command: the command line.
+        :param environment: its environment.
+        """
+        self.name = name
+        self.process = subprocess.Popen(
+            command, env=environment, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True,
+            preexec_fn=_die_with_parent)
+        self._forwarder = threading.Thread(target=self._forward_output, daemon=True)
+        self._forwarder.start()
+
+    def _forward_output(self):
+        for line in self.process.stdout:
+            print(f'[{self.name}] {line.rstrip()}', flush=True)
+
+    def stop(self) -> int:
+        """
+        Stop the process with SIGINT, as Ctrl-C would, escalating if it does not end.
+
+        :return: its exit code.
+        """
+        for stop_signal in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            if self.process.poll() is not None:
+                break
+            self.process.send_signal(stop_signal)
+            try:
+                self.process.wait(STOP_GRACE_S)
+            except subprocess.TimeoutExpired:
+                print(f'[followbot] {self.name} did not stop on {stop_signal.name}.', flush=True)
+        self._forwarder.join(STOP_GRACE_S)
+        return self.process.wait()
+
+
+class MonitorNode(Node):
+    """Print the simulator's ground-truth progress and save pictures."""
+
+    def __init__(self, report_period_s: float, pictures_dir: Path | None, **kwargs):
+        """
+        Subscribe to the score and, when pictures are wanted, to the two images.
+
+        :param report_period_s: simulated seconds between progress lines.
+        :param pictures_dir: folder for the pictures, or None for none.
+        :param kwargs: forwarded to :class:`rclpy.node.Node`.
+        """
+        super().__init__('followbot_monitor', **kwargs)
+        self._report_period_s = report_period_s
+        self._next_report_s = 0.0
+        self._laps_reported = 0
+        self.summary = {}
+        self._pictures_dir = pictures_dir
+        self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback, 10)
+        if pictures_dir is not None:
+            pictures_dir.mkdir(parents=True, exist_ok=True)
+            image_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+            self.create_subscription(Image, DEBUG_IMAGE_TOPIC, self.debug_image_callback,
+                                     image_qos)
+            self.create_subscription(Image, OVERVIEW_IMAGE_TOPIC,
+                                     self.overview_image_callback, image_qos)
+            self._last_camera_save_s = -1.0
+
+    def diagnostics_callback(self, msg: DiagnosticArray) -> None:
+        """Keep the latest score and print a progress line when one is due."""
+        for status in msg.status:
+            if status.name != SCORE_STATUS_NAME:
+                continue
+            self.summary = {value.key: value.value for value in status.values}
+            time_s = float(self.summary['time_s'])
+            laps = int(self.summary['laps_completed'])
+            # Score stamps are multiples of the period up to float rounding: allow for it.
+            if laps > self._laps_reported or time_s + REPORT_TOLERANCE_S >= self._next_report_s:
+                self._laps_reported = laps
+                self._next_report_s = time_s + self._report_period_s
+                print('[followbot] ' + format_progress(self.summary), flush=True)
+
+    def debug_image_callback(self, msg: Image) -> None:
+        """Save the follower's view about once a second of simulated time."""
+        stamp_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if stamp_s - self._last_camera_save_s >= 1.0 or stamp_s < self._last_camera_save_s:
+            self._last_camera_save_s = stamp_s
+            self._save(msg, CAMERA_PICTURE)
+
+    def overview_image_callback(self, msg: Image) -> None:
+        """Save the latest top-down view."""
+        self._save(msg, OVERVIEW_PICTURE)
+
+    def _save(self, msg: Image, file_name: str) -> None:
+        bgr = to_bgr(image_to_array(msg), msg.encoding)
+        path = self._pictures_dir / file_name
+        # Write then rename, so a reader never sees half a picture.
+        partial = path.with_suffix('.partial.png')
+        cv2.imwrite(str(partial), bgr)
+        os.replace(partial, path)
+
+
+def format_progress(summary: dict) -> str:
+    """
+    Describe the ground-truth score in one line.
+
+    :param summary: the simulator's score, as the string key-values of /diagnostics.
+    :return: a line such as ``t= 120.0 s  laps 1 (106.5 s)  next lap  13%  from line 1.2 cm
+        (rms 2.6, max 6.7)  off line 0.0 s``.
+    """
+    lap_times = summary.get('lap_times_s', '[]').strip('[]')
+    lap_text = ', '.join(f'{float(lap):.1f} s' for lap in lap_times.split(',') if lap.strip())
+    lap_fraction = (float(summary['progress_m']) / float(summary['course_length_m'])) % 1.0
+    return (f"t={float(summary['time_s']):6.1f} s  laps {summary['laps_completed']}"
+            + (f' ({lap_text})' if lap_text else '')
+            + f'  next lap {100 * lap_fraction:3.0f}%'
+            + f"  from line {100 * float(summary['distance_from_line_m']):.1f} cm"
+            f" (rms {100 * float(summary['rms_distance_from_line_m']):.1f},"
+            f" max {100 * float(summary['max_distance_from_line_m']):.1f})"
+            f"  off line {float(summary['time_off_line_s']):.1f} s")
+
+
+def _node_command(module: str, parameters: dict) -> list:
+    command = [sys.executable, '-m', module, '--ros-args']
+    for name, value in parameters.items():
+        command += ['-p', f'{name}:={value}']
+    return command
+
+
+def main(argv=None) -> int:
+    """
+    Run the demo: simulator + follower, progress on the terminal.
+
+    :param argv: command-line arguments without the program name.
+    :return: the exit code: 0 when both nodes ran and stopped cleanly.
+    """
+    options = parse_arguments(argv)
+    environment = dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+    if options.domain_id is not None:
+        environment['ROS_DOMAIN_ID'] = str(options.domain_id)
+    domain_id = int(environment.get('ROS_DOMAIN_ID', '0'))
+
+    # Ctrl-C reaches this process only (children run in their own sessions): forward it.
+    interrupted = threading.Event()
+    signal.signal(signal.SIGINT, lambda signum, frame: interrupted.set())
+    signal.signal(signal.SIGTERM, lambda signum, frame: interrupted.set())
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id,
+               signal_handler_options=SignalHandlerOptions.NO)
+    monitor = MonitorNode(options.report_period, options.pictures_dir, context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(monitor)
+    length = (f'{options.duration:g} s of simulated time' if options.duration
+              else 'until Ctrl-C')
+    pace = (f'real-time factor {options.real_time_factor:g}' if options.real_time_factor
+            else 'as fast as possible')
+    print(f'[followbot] ROS_DOMAIN_ID={domain_id}; course {options.course}; running {length}, '
+          f'{pace}.', flush=True)
+    simulator = ChildProcess('sim', _node_command('followbot_sim.sim_node', {
+        'course': options.course,
+        'real_time_factor': float(options.real_time_factor),
+        'run_duration_s': float(options.duration),
+        'score_period_s': 1.0,
+    }), environment)
+    follower = ChildProcess('follower', _node_command('followbot.follower_node', {
+        'use_sim_time': 'true',
+    }), environment)
+    children = (simulator, follower)
+    try:
+        while not interrupted.is_set() and all(c.process.poll() is None for c in children):
+            executor.spin_once(timeout_sec=MONITOR_SPIN_S)
+    finally:
+        # The simulator ends on its own after --duration; stop the follower first so its
+        # final zero Twist still reaches a running simulator on Ctrl-C.
+        exit_codes = {child.name: child.stop() for child in (follower, simulator)}
+        # Let the last score and pictures arrive, then leave.
+        deadline = time.monotonic() + MONITOR_SPIN_S * 5
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=MONITOR_SPIN_S)
+        executor.shutdown()
+        monitor.destroy_node()
+        rclpy.try_shutdown(context=context)
+    if monitor.summary:
+        print('[followbot] final: ' + format_progress(monitor.summary), flush=True)
+    failed = {name: code for name, code in exit_codes.items() if code != 0}
+    if failed:
+        print(f'[followbot] failed: {failed} (exit codes)', flush=True)
+        return 1
+    if options.pictures_dir is not None:
+        print(f'[followbot] pictures in {options.pictures_dir}/', flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

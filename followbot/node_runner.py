@@ -1,0 +1,49 @@
+"""Run one node in its own process the same way for every followbot executable."""
+
+import signal
+
+import rclpy
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
+
+# How often the spin loop returns to Python, so that Ctrl-C is seen even when no message comes.
+SPIN_POLL_S = 0.1
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def run_node(node_class, args=None) -> None:
+    """
+    Spin a node until Ctrl-C, SIGTERM or its own ``finished`` flag, then clean it up.
+
+    rclpy's own SIGINT handler shuts the context down before a node's cleanup runs, so a
+    node could not publish its last words (the follower's zero Twist). Here rclpy installs no
+    handler; SIGINT and SIGTERM become a KeyboardInterrupt and ``destroy_node`` runs while the
+    context is still valid.
+
+    :param node_class: a Node subclass taking ``**kwargs``; an optional ``finished`` property
+        ends the spin when it becomes true.
+    :param args: command-line arguments for ``rclpy.init`` (``--ros-args`` and friends).
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    node = None
+    try:
+        try:
+            node = node_class()
+        except (ValueError, ParameterException) as error:
+            # A parameter of the wrong type, out of its range, or naming nothing known: say
+            # which, not a traceback.
+            rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
+            raise SystemExit(2)
+        while rclpy.ok() and not getattr(node, 'finished', False):
+            rclpy.spin_once(node, timeout_sec=SPIN_POLL_S)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

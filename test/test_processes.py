@@ -1,0 +1,202 @@
+"""
+The executables as users start them: separate processes that talk over DDS only.
+
+An independent rclpy client, like ``ros2 topic echo`` would, checks what the simulator and the
+follower publish; the ``followbot`` entry point is run as a person runs the demo.
+"""
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from conftest import run_domain_id
+import cv2
+from geometry_msgs.msg import Twist
+import pytest
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image
+
+
+CAMERA_PERIOD_S = 0.05
+KINECT_FX_PX = 320.0 / 0.5773502691896257  # 60 degrees across 640 px
+DISCOVERY_TIMEOUT_S = 30.0
+STOP_TIMEOUT_S = 15.0
+
+
+def node_command(module: str, *ros_arguments: str) -> list:
+    """Return the command line that starts a followbot module as its own process."""
+    return [sys.executable, '-m', module, '--ros-args', *ros_arguments]
+
+
+def child_environment(domain_id: int) -> dict:
+    """Return an environment that keeps a child's DDS traffic on this test's domain."""
+    return dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
+
+
+def stop(process: subprocess.Popen) -> int:
+    """Stop a child as Ctrl-C would and return its exit code."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.wait(STOP_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        raise
+
+
+class TopicRecorder:
+    """Collect messages of a few topics with an independent node."""
+
+    def __init__(self, node):
+        self.images = []
+        self.camera_infos = []
+        self.clocks = []
+        self.cmd_vels = []
+        # Reliable, like the publishers (REP-2003): the test counts every frame published.
+        node.create_subscription(Image, 'camera/rgb/image_raw', self.images.append, 50)
+        node.create_subscription(CameraInfo, 'camera/rgb/camera_info',
+                                 self.camera_infos.append, 10)
+        node.create_subscription(Clock, '/clock', self.clocks.append, 100)
+        node.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
+
+
+def spin_until(executor, condition, timeout_s: float) -> bool:
+    """Spin until ``condition()`` holds or the time runs out; return whether it held."""
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.1)
+    return condition()
+
+
+def stamp_s(stamp) -> float:
+    """Return a builtin_interfaces/Time as seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
+    # The tests of a run go one after another: the children share the run's own domain.
+    environment = child_environment(run_domain_id())
+    simulator = subprocess.Popen(
+        node_command('followbot_sim.sim_node', '-p', 'real_time_factor:=2.0'),
+        env=environment)
+    follower = subprocess.Popen(
+        node_command('followbot.follower_node', '-p', 'use_sim_time:=true'), env=environment)
+    client = Node('independent_client', context=ros_context)
+    recorder = TopicRecorder(client)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(client)
+    try:
+        assert spin_until(executor, lambda: len(recorder.images) >= 40
+                          and any(abs(msg.angular.z) > 1e-3 for msg in recorder.cmd_vels),
+                          DISCOVERY_TIMEOUT_S), (
+            f'{len(recorder.images)} images, {len(recorder.cmd_vels)} cmd_vel')
+        # What came while everything ran (stopping the children below pauses our spinning).
+        images = list(recorder.images)
+        camera_infos = list(recorder.camera_infos)
+        clocks = list(recorder.clocks)
+        cmd_vels = list(recorder.cmd_vels)
+        assert stop(follower) == 0
+        # The follower's last word is a zero Twist, so the robot does not drive on.
+        assert spin_until(executor, lambda: recorder.cmd_vels[-1] == Twist(), 5.0)
+        assert stop(simulator) == 0
+    finally:
+        for process in (follower, simulator):
+            if process.poll() is None:
+                process.kill()
+        executor.shutdown()
+        client.destroy_node()
+
+    image = images[-1]
+    assert (image.width, image.height, image.encoding) == (640, 480, 'bgr8')
+    assert image.step == 640 * 3 and len(image.data) == 640 * 480 * 3
+    assert image.header.frame_id == 'camera_rgb_optical_frame'
+    stamps_s = [stamp_s(msg.header.stamp) for msg in images]
+    periods_s = [later - earlier for earlier, later in zip(stamps_s, stamps_s[1:])]
+    # 20 Hz of simulated time: consecutive stamps 0.05 s apart.
+    assert periods_s == pytest.approx([CAMERA_PERIOD_S] * len(periods_s), abs=1e-6)
+
+    info = camera_infos[-1]
+    assert (info.width, info.height) == (640, 480)
+    assert info.header.frame_id == 'camera_rgb_optical_frame'
+    fx, _, cx, _, fy, cy, _, _, _ = info.k
+    assert fx == pytest.approx(KINECT_FX_PX) and fy == pytest.approx(KINECT_FX_PX)
+    assert (cx, cy) == pytest.approx((319.5, 239.5))
+    assert list(info.p[:3]) == pytest.approx([fx, 0.0, cx])
+    # Every image has its camera_info with the same stamp (the newest may still be on its way).
+    info_stamps_s = {stamp_s(msg.header.stamp) for msg in camera_infos}
+    assert set(stamps_s[:-1]) <= info_stamps_s
+
+    clock_s = [stamp_s(msg.clock) for msg in clocks]
+    assert clock_s == sorted(clock_s) and clock_s[-1] > clock_s[0]
+    assert clock_s[-1] >= stamps_s[-1] - CAMERA_PERIOD_S
+
+    steering = [msg for msg in cmd_vels if msg.linear.x > 0.0]
+    assert steering and all(msg.linear.x == pytest.approx(0.2) for msg in steering)
+
+
+def run_launcher(domain_id: int, *arguments: str, **popen_options) -> subprocess.Popen:
+    """Start the followbot entry point as a user would."""
+    return subprocess.Popen(
+        [sys.executable, '-m', 'followbot.launcher', '--domain-id', str(domain_id),
+         *arguments], env=child_environment(domain_id), stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, text=True, **popen_options)
+
+
+def test_followbot_runs_both_nodes_and_reports_progress(tmp_path):
+    pictures_dir = tmp_path / 'pictures'
+    launcher = run_launcher(run_domain_id(), '--duration', '8',
+                            '--real-time-factor', '0', '--report-period', '2',
+                            '--pictures-dir', str(pictures_dir))
+    output, _ = launcher.communicate(timeout=120)
+    assert launcher.returncode == 0, output
+    assert '[sim] ' in output and '[follower] ' in output
+    progress = [line for line in output.splitlines() if line.startswith('[followbot] t=')]
+    assert len(progress) >= 3, output
+    final = [line for line in output.splitlines() if line.startswith('[followbot] final: ')]
+    assert final and 't=   8.0 s' in final[0], output
+    camera = cv2.imread(str(pictures_dir / 'camera_debug.png'))
+    overview = cv2.imread(str(pictures_dir / 'overview.png'))
+    assert camera.shape == (480, 640, 3)
+    assert overview.shape == (800, 800, 3)
+
+
+def child_pids(parent_pid: int) -> list:
+    """Return the process ids whose parent is ``parent_pid`` (Linux /proc)."""
+    children = []
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        try:
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+        except OSError:
+            continue  # The process ended while we looked.
+        if int(fields[1]) == parent_pid:
+            children.append(int(stat.parent.name))
+    return children
+
+
+def test_followbot_forwards_ctrl_c_and_leaves_no_orphans():
+    launcher = run_launcher(run_domain_id(), '--duration', '0')
+    lines = []
+    for line in launcher.stdout:
+        lines.append(line)
+        if line.startswith('[followbot] t='):
+            break
+    children = child_pids(launcher.pid)
+    assert len(children) == 2, ''.join(lines)
+    launcher.send_signal(signal.SIGINT)
+    output, _ = launcher.communicate(timeout=STOP_TIMEOUT_S * 2)
+    assert launcher.returncode == 0, ''.join(lines) + output
+    assert not [pid for pid in children if Path(f'/proc/{pid}').exists()]
+
+
+def test_followbot_fails_when_a_node_fails():
+    launcher = run_launcher(run_domain_id(), '--course', 'no_such',
+                            '--duration', '5')
+    output, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode != 0, output
+    assert "unknown course 'no_such'" in output
