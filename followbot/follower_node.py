@@ -51,6 +51,13 @@ CONTROLLER_PARAMETERS = {
                             + ' or '.join(LOST_LINE_BEHAVIOURS)
                             + " ('search' turns toward the side it was last seen)."),
 }
+FOLLOWER_PARAMETERS = {
+    **specs_for_config(DetectorConfig(), DETECTOR_PARAMETERS),
+    **specs_for_config(ControllerConfig(), CONTROLLER_PARAMETERS),
+    'image_timeout_s': ParameterSpec(
+        0.5, 'Stop when no camera image came for this long (node clock, so simulated time '
+        'under use_sim_time).', 0.05, 10.0),
+}
 
 
 class FollowerNode(Node):
@@ -64,14 +71,12 @@ class FollowerNode(Node):
             ``parameter_overrides``, ...).
         """
         super().__init__('follower', **kwargs)
-        self._detector = LineDetector(DetectorConfig(**declare_parameters(
-            self, specs_for_config(DetectorConfig(), DETECTOR_PARAMETERS))))
-        self._controller = LineFollowingController(ControllerConfig(**declare_parameters(
-            self, specs_for_config(ControllerConfig(), CONTROLLER_PARAMETERS))))
-        self._image_timeout_s = declare_parameters(self, {
-            'image_timeout_s': ParameterSpec(
-                0.5, 'Stop when no camera image came for this long (node clock, so simulated '
-                'time under use_sim_time).', 0.05, 10.0)})['image_timeout_s']
+        parameters = declare_parameters(self, FOLLOWER_PARAMETERS)
+        self._detector = LineDetector(DetectorConfig(
+            **{name: parameters[name] for name in DETECTOR_PARAMETERS}))
+        self._controller = LineFollowingController(ControllerConfig(
+            **{name: parameters[name] for name in CONTROLLER_PARAMETERS}))
+        self._image_timeout_s = parameters['image_timeout_s']
 
         self._cmd_vel_publisher = self.create_publisher(Twist, 'cmd_vel', 10)
         self._debug_image_publisher = self.create_publisher(Image, '~/debug_image', 1)

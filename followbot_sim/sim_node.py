@@ -195,9 +195,12 @@ class SimulatorNode(Node):
         if self._real_time_factor == 0.0:
             self._tick()
             return
-        now_s = time.monotonic()
         if self._pacing_origin is None:
-            self._pacing_origin = (now_s, self._world.time_s)
+            # Pace from the end of the first tick: it includes the renderer's start-up.
+            self._tick()
+            self._pacing_origin = (time.monotonic(), self._world.time_s)
+            return
+        now_s = time.monotonic()
         origin_wall_s, origin_sim_s = self._pacing_origin
         target_sim_s = origin_sim_s + (now_s - origin_wall_s) * self._real_time_factor
         if target_sim_s - self._world.time_s > MAX_PACING_LAG_S * self._real_time_factor:
