@@ -1,0 +1,41 @@
+# Two commands on a fresh machine (Debian/Ubuntu, Python 3.11 or 3.12, no ROS install):
+#   make demo   - set up .venv, then watch the simulated TurtleBot lap the course
+#   make test   - set up .venv, then run the whole test suite (what CI runs)
+# Set-up is done once and redone only when a requirements file or setup.py changes.
+
+PYTHON ?= python3
+VENV ?= .venv
+DEMO_ARGS ?= --duration 240 --pictures-dir pictures
+STAMP := $(VENV)/.followbot-installed
+# Debian's Mesa EGL stack: MuJoCo renders off-screen with it, on the CPU, without a display.
+MESA_EGL_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2
+
+.PHONY: demo test setup system-deps clean
+
+demo: $(STAMP)
+	$(VENV)/bin/followbot $(DEMO_ARGS)
+
+test: $(STAMP)
+	$(VENV)/bin/python -m pytest -q test
+
+setup: $(STAMP)
+
+system-deps:
+	@if ldconfig -p | grep -q libEGL_mesa.so.0 && ldconfig -p | grep -q libEGL.so.1; then \
+		echo 'Mesa EGL present.'; \
+	else \
+		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+		$$SUDO apt-get update -qq && \
+		DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $(MESA_EGL_PACKAGES); \
+	fi
+
+$(STAMP): requirements.txt requirements-test.txt setup.py | system-deps
+	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install -q --upgrade pip
+	$(VENV)/bin/python -m pip install -q -r requirements-test.txt
+	# Editable, so the models are found in this checkout and edits take effect at once.
+	$(VENV)/bin/python -m pip install -q --no-deps -e .
+	touch $@
+
+clean:
+	rm -rf $(VENV) pictures build install log *.egg-info
