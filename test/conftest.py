@@ -17,6 +17,18 @@ def run_domain_id() -> int:
     return FIRST_TEST_DOMAIN_ID + os.getpid() % TEST_DOMAIN_COUNT
 
 
+def child_environment(domain_id: int | None = None) -> dict:
+    """
+    Return the environment for a child process that keeps its DDS traffic on this run's domain.
+
+    :param domain_id: the domain; this run's own when None.
+    :return: a copy of this process's environment with the ROS isolation variables set.
+    """
+    domain_id = run_domain_id() if domain_id is None else domain_id
+    return dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
+
+
 @pytest.fixture
 def ros_context(monkeypatch):
     """Yield an initialised rclpy Context on this run's own, localhost-only domain."""

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 
+from conftest import child_environment
 from followbot.follower_node import FOLLOWER_PARAMETERS, FollowerNode
 from followbot.image_conversion import array_to_image
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS
@@ -196,7 +197,8 @@ def test_out_of_range_parameters_are_refused(ros_context, name, value):
 def test_bad_parameter_on_the_command_line_is_one_clear_line():
     result = subprocess.run(
         [sys.executable, '-m', 'followbot.follower_node', '--ros-args', '-p',
-         'lost_line_behaviour:=dance'], capture_output=True, text=True, timeout=60)
+         'lost_line_behaviour:=dance'], capture_output=True, text=True, timeout=60,
+        env=child_environment())
     assert result.returncode == 2
     assert "lost_line_behaviour must be one of search, stop, got 'dance'" in result.stderr
     assert 'Traceback' not in result.stderr

@@ -5,14 +5,13 @@ An independent rclpy client, like ``ros2 topic echo`` would, checks what the sim
 follower publish; the ``followbot`` entry point is run as a person runs the demo.
 """
 
-import os
 from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
 
-from conftest import run_domain_id
+from conftest import child_environment, run_domain_id
 import cv2
 from geometry_msgs.msg import Twist
 import pytest
@@ -31,12 +30,6 @@ STOP_TIMEOUT_S = 15.0
 def node_command(module: str, *ros_arguments: str) -> list:
     """Return the command line that starts a followbot module as its own process."""
     return [sys.executable, '-m', module, '--ros-args', *ros_arguments]
-
-
-def child_environment(domain_id: int) -> dict:
-    """Return an environment that keeps a child's DDS traffic on this test's domain."""
-    return dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
-                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
 
 
 def stop(process: subprocess.Popen) -> int:
@@ -81,7 +74,7 @@ def stamp_s(stamp) -> float:
 
 def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
     # The tests of a run go one after another: the children share the run's own domain.
-    environment = child_environment(run_domain_id())
+    environment = child_environment()
     simulator = subprocess.Popen(
         node_command('followbot_sim.sim_node', '-p', 'real_time_factor:=2.0'),
         env=environment)
