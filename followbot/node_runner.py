@@ -29,7 +29,10 @@ def run_node(node_class, args=None) -> None:
     :param args: command-line arguments for ``rclpy.init`` (``--ros-args`` and friends).
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    # Set SIGINT too: a shell starts background jobs with SIGINT ignored, and Python then
+    # keeps it ignored, so `kill -INT` (what ros2 launch sends) would not stop the node.
+    for stop_signal in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(stop_signal, _raise_keyboard_interrupt)
     node = None
     try:
         try:

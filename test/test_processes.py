@@ -193,3 +193,16 @@ def test_followbot_fails_when_a_node_fails():
     output, _ = launcher.communicate(timeout=60)
     assert launcher.returncode != 0, output
     assert "unknown course 'no_such'" in output
+
+
+def test_nodes_stop_on_sigint_even_when_started_with_it_ignored():
+    # A shell starts background jobs (`follower &`) with SIGINT ignored; `kill -INT` and
+    # launch tools must still stop the node cleanly.
+    follower = subprocess.Popen(
+        node_command('followbot.follower_node'), env=child_environment(),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    for line in follower.stdout:
+        if 'Following the line' in line:
+            break
+    assert stop(follower) == 0
