@@ -1,18 +1,17 @@
 """Run one node in its own process the same way for every followbot executable."""
 
 import signal
+import threading
 
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
-# How often the spin loop returns to Python, so that Ctrl-C is seen even when no message comes.
+# How often the spin loop returns to Python, so that a stop request is seen even when no
+# message comes.
 SPIN_POLL_S = 0.1
-
-
-def _raise_keyboard_interrupt(signum, frame):
-    raise KeyboardInterrupt
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def run_node(node_class, args=None) -> None:
@@ -21,18 +20,19 @@ def run_node(node_class, args=None) -> None:
 
     rclpy's own SIGINT handler shuts the context down before a node's cleanup runs, so a
     node could not publish its last words (the follower's zero Twist). Here rclpy installs no
-    handler; SIGINT and SIGTERM become a KeyboardInterrupt and ``destroy_node`` runs while the
-    context is still valid.
+    handler; SIGINT and SIGTERM only set a flag that the spin loop checks between callbacks,
+    so no callback is cut short and ``destroy_node`` runs while the context is still valid.
 
     :param node_class: a Node subclass taking ``**kwargs``; an optional ``finished`` property
         ends the spin when it becomes true.
     :param args: command-line arguments for ``rclpy.init`` (``--ros-args`` and friends).
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop_requested = threading.Event()
     # Set SIGINT too: a shell starts background jobs with SIGINT ignored, and Python then
     # keeps it ignored, so `kill -INT` (what ros2 launch sends) would not stop the node.
-    for stop_signal in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(stop_signal, _raise_keyboard_interrupt)
+    for stop_signal in STOP_SIGNALS:
+        signal.signal(stop_signal, lambda signum, frame: stop_requested.set())
     node = None
     try:
         try:
@@ -42,9 +42,10 @@ def run_node(node_class, args=None) -> None:
             # which, not a traceback.
             rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
             raise SystemExit(2)
-        while rclpy.ok() and not getattr(node, 'finished', False):
+        while (rclpy.ok() and not stop_requested.is_set()
+               and not getattr(node, 'finished', False)):
             rclpy.spin_once(node, timeout_sec=SPIN_POLL_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:
         pass
     finally:
         if node is not None:

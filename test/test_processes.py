@@ -143,14 +143,15 @@ def run_launcher(domain_id: int, *arguments: str, **popen_options) -> subprocess
 
 def test_followbot_runs_both_nodes_and_reports_progress(tmp_path):
     pictures_dir = tmp_path / 'pictures'
+    # Real time, so that the monitor has discovered the simulator well before the run ends.
     launcher = run_launcher(run_domain_id(), '--duration', '8',
-                            '--real-time-factor', '0', '--report-period', '2',
+                            '--real-time-factor', '1', '--report-period', '2',
                             '--pictures-dir', str(pictures_dir))
     output, _ = launcher.communicate(timeout=120)
     assert launcher.returncode == 0, output
     assert '[sim] ' in output and '[follower] ' in output
     progress = [line for line in output.splitlines() if line.startswith('[followbot] t=')]
-    assert len(progress) >= 3, output
+    assert len(progress) >= 2, output
     final = [line for line in output.splitlines() if line.startswith('[followbot] final: ')]
     assert final and 't=   8.0 s' in final[0], output
     camera = cv2.imread(str(pictures_dir / 'camera_debug.png'))
