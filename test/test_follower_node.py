@@ -7,19 +7,15 @@ Each test puts the follower and a small client node in one executor on a private
 from pathlib import Path
 import subprocess
 import sys
-import time
 
-from conftest import child_environment
+from conftest import child_environment, NodeHarness
 from followbot.follower_node import FOLLOWER_PARAMETERS, FollowerNode
 from followbot.image_conversion import array_to_image
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS
 from geometry_msgs.msg import Twist
 import numpy as np
 import pytest
-from rcl_interfaces.msg import Log
 from rclpy.exceptions import ParameterException
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image
 import yaml
@@ -30,7 +26,6 @@ FLOOR_GREY = 116
 WIDTH_PX = 640
 HEIGHT_PX = 480
 LINE_HALF_WIDTH_PX = 30
-WAIT_S = 10.0
 
 
 def camera_frame(line_column_px=None, encoding='bgr8') -> Image:
@@ -45,32 +40,18 @@ def camera_frame(line_column_px=None, encoding='bgr8') -> Image:
     return msg
 
 
-class Harness:
-    """A follower, a client publishing camera frames and recording what comes back."""
+class Harness(NodeHarness):
+    """A follower, and a client publishing camera frames and recording what comes back."""
 
     def __init__(self, context, **follower_options):
-        self.follower = FollowerNode(context=context, **follower_options)
-        self.client = Node('follower_test_client', context=context)
+        super().__init__(context, FollowerNode(context=context, **follower_options),
+                         'follower_test_client')
+        self.follower = self.node
         self.images = self.client.create_publisher(Image, 'camera/rgb/image_raw', 10)
         self.cmd_vels = []
         self.debug_images = []
-        self.errors = []
         self.client.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
-        self.client.create_subscription(Log, '/rosout', self._log_callback, 100)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.follower)
-        self.executor.add_node(self.client)
         self.spin_until(lambda: self.images.get_subscription_count() > 0)
-
-    def _log_callback(self, msg):
-        if msg.name == 'follower' and msg.level >= Log.ERROR:
-            self.errors.append(msg.msg)
-
-    def spin_until(self, condition, timeout_s=WAIT_S):
-        deadline = time.monotonic() + timeout_s
-        while not condition() and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.05)
-        assert condition(), 'timed out'
 
     def send(self, msg):
         """Publish a frame and return the command it causes."""
@@ -78,11 +59,6 @@ class Harness:
         self.images.publish(msg)
         self.spin_until(lambda: len(self.cmd_vels) > count)
         return self.cmd_vels[-1]
-
-    def close(self):
-        self.executor.shutdown()
-        self.follower.destroy_node()
-        self.client.destroy_node()
 
 
 @pytest.fixture

@@ -9,9 +9,8 @@ from pathlib import Path
 import signal
 import subprocess
 import sys
-import time
 
-from conftest import child_environment, run_domain_id
+from conftest import child_environment, run_domain_id, spin_until
 import cv2
 from geometry_msgs.msg import Twist
 import pytest
@@ -57,14 +56,6 @@ class TopicRecorder:
                                  self.camera_infos.append, 10)
         node.create_subscription(Clock, '/clock', self.clocks.append, 100)
         node.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
-
-
-def spin_until(executor, condition, timeout_s: float) -> bool:
-    """Spin until ``condition()`` holds or the time runs out; return whether it held."""
-    deadline = time.monotonic() + timeout_s
-    while not condition() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.1)
-    return condition()
 
 
 def stamp_s(stamp) -> float:

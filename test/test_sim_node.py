@@ -6,50 +6,31 @@ A client node publishes Twists; the simulator's own world gives the ground truth
 
 import math
 
+from conftest import NodeHarness
 from followbot_sim.sim_node import SimulatorNode
 from geometry_msgs.msg import Twist
 import pytest
-from rcl_interfaces.msg import Log
 from rclpy.exceptions import ParameterException
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 COMMAND_TIMEOUT_S = 0.6
 FORWARD_SPEED_MPS = 0.3
 SETTLE_S = 0.3
-SPIN_LIMIT = 20000
 
 
-class SimHarness:
+class SimHarness(NodeHarness):
     """A simulator running as fast as possible and a client that commands it."""
 
     def __init__(self, context, *overrides):
-        self.simulator = SimulatorNode(context=context, parameter_overrides=[
-            Parameter('real_time_factor', value=0.0), *overrides])
-        self.client = Node('sim_test_client', context=context)
+        super().__init__(context, SimulatorNode(context=context, parameter_overrides=[
+            Parameter('real_time_factor', value=0.0), *overrides]), 'sim_test_client')
+        self.simulator = self.node
         self.cmd_vel = self.client.create_publisher(Twist, 'cmd_vel', 10)
-        self.errors = []
-        self.client.create_subscription(Log, '/rosout', self._log_callback, 100)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.simulator)
-        self.executor.add_node(self.client)
         self.spin_until(lambda: self.cmd_vel.get_subscription_count() > 0)
-
-    def _log_callback(self, msg):
-        if msg.name == 'followbot_sim' and msg.level >= Log.ERROR:
-            self.errors.append(msg.msg)
 
     @property
     def world(self):
         return self.simulator.world
-
-    def spin_until(self, condition):
-        for _ in range(SPIN_LIMIT):
-            if condition():
-                return
-            self.executor.spin_once(timeout_sec=0.1)
-        raise AssertionError('condition not reached')
 
     def command(self, linear_mps, angular_radps=0.0):
         """Publish a Twist and spin until the simulator has it (its robot starts moving)."""
@@ -62,11 +43,6 @@ class SimHarness:
 
     def run_until(self, time_s):
         self.spin_until(lambda: self.world.time_s >= time_s)
-
-    def close(self):
-        self.executor.shutdown()
-        self.simulator.destroy_node()
-        self.client.destroy_node()
 
 
 @pytest.fixture
