@@ -14,7 +14,7 @@ SPIN_POLL_S = 0.1
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-def run_node(node_class, args=None) -> None:
+def run_node(node_class, args=None, startup_errors=()) -> None:
     """
     Spin a node until Ctrl-C, SIGTERM or its own ``finished`` flag, then clean it up.
 
@@ -26,6 +26,8 @@ def run_node(node_class, args=None) -> None:
     :param node_class: a Node subclass taking ``**kwargs``; an optional ``finished`` property
         ends the spin when it becomes true.
     :param args: command-line arguments for ``rclpy.init`` (``--ros-args`` and friends).
+    :param startup_errors: further exception types that mean "cannot start here" and are
+        reported as one line, like invalid parameters.
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_requested = threading.Event()
@@ -37,9 +39,9 @@ def run_node(node_class, args=None) -> None:
     try:
         try:
             node = node_class()
-        except (ValueError, ParameterException) as error:
-            # A parameter of the wrong type, out of its range, or naming nothing known: say
-            # which, not a traceback.
+        except (ValueError, ParameterException, *startup_errors) as error:
+            # A parameter of the wrong type, out of its range, or naming nothing known, or a
+            # machine that lacks something: say which, not a traceback.
             rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
             raise SystemExit(2)
         while (rclpy.ok() and not stop_requested.is_set()

@@ -21,7 +21,7 @@ from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits,
                                       KOBUKI_MAX_ANGULAR_SPEED_RADPS,
                                       KOBUKI_MAX_LINEAR_SPEED_MPS)
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
-                                 FollowbotWorld)
+                                 FollowbotWorld, RenderingUnavailableError)
 from geometry_msgs.msg import Twist
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -124,6 +124,9 @@ class SimulatorNode(Node):
         self._image_msg = Image()
         self._image_msg.header.frame_id = CAMERA_FRAME
         self._camera_info_msg = self._make_camera_info()
+        # Render once now: a machine that cannot render says so at start-up, and the GL
+        # context is made on this thread, the one that spins the node.
+        self._world.render_camera()
 
         # REP-2003: sensor publishers are reliable; subscribers pick best effort if they like.
         self._image_publisher = self.create_publisher(Image, 'camera/rgb/image_raw', 10)
@@ -293,7 +296,7 @@ class SimulatorNode(Node):
 
 def main(args=None):
     """Run the simulator until Ctrl-C or until ``run_duration_s`` of simulated time."""
-    run_node(SimulatorNode, args)
+    run_node(SimulatorNode, args, startup_errors=(RenderingUnavailableError,))
 
 
 if __name__ == '__main__':

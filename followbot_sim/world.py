@@ -7,6 +7,7 @@ The context belongs to the thread that first renders, so render from one thread 
 """
 
 import math
+import os
 from pathlib import Path
 import sys
 
@@ -36,6 +37,10 @@ DEFAULT_HORIZONTAL_FOV_DEG = 60.0
 # to track, so it cuts them by tens of centimetres. Tilted down 30 degrees the same band sees
 # ~0.45 m ahead of the robot centre and the robot stays on the line.
 DEFAULT_CAMERA_PITCH_DEG = 30.0
+
+
+class RenderingUnavailableError(RuntimeError):
+    """MuJoCo cannot render off-screen on this machine; the message says what to check."""
 
 
 def models_directory() -> Path:
@@ -260,6 +265,17 @@ class FollowbotWorld:
         right = self.model.joint(RIGHT_WHEEL_JOINT).dofadr[0]
         return float(self.data.qvel[left]), float(self.data.qvel[right])
 
+    def _make_renderer(self, height_px: int, width_px: int) -> mujoco.Renderer:
+        try:
+            return mujoco.Renderer(self.model, height_px, width_px)
+        except Exception as error:  # GL back ends fail with many error types.
+            backend = os.environ.get('MUJOCO_GL', '(unset)')
+            raise RenderingUnavailableError(
+                f'MuJoCo cannot render off-screen with MUJOCO_GL={backend} '
+                f"({str(error).rstrip('.')}). Headless "
+                'machines need Mesa EGL (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri); '
+                'MUJOCO_GL=osmesa or glfw (with a display) are alternatives.') from error
+
     def render_camera(self) -> np.ndarray:
         """
         Render the robot's RGB camera.
@@ -270,7 +286,7 @@ class FollowbotWorld:
         """
         if self._renderer is None:
             width_px, height_px = self._image_size_px
-            self._renderer = mujoco.Renderer(self.model, height_px, width_px)
+            self._renderer = self._make_renderer(height_px, width_px)
         self._renderer.update_scene(self.data, camera=self._camera_id)
         return self._renderer.render(out=self._camera_image)
 
@@ -284,7 +300,7 @@ class FollowbotWorld:
         if self._overview_renderer is None or self._overview_renderer.width != size_px:
             if self._overview_renderer is not None:
                 self._overview_renderer.close()
-            self._overview_renderer = mujoco.Renderer(self.model, size_px, size_px)
+            self._overview_renderer = self._make_renderer(size_px, size_px)
         self._overview_renderer.update_scene(self.data, camera=OVERVIEW_CAMERA_NAME)
         return self._overview_renderer.render()
 

@@ -198,3 +198,13 @@ def test_nodes_stop_on_sigint_even_when_started_with_it_ignored():
         if 'Following the line' in line:
             break
     assert stop(follower) == 0
+
+
+def test_simulator_says_clearly_when_it_cannot_render():
+    # An EGL device that does not exist stands in for a machine without a usable GL.
+    environment = dict(child_environment(), MUJOCO_GL='egl', MUJOCO_EGL_DEVICE_ID='99')
+    result = subprocess.run(node_command('followbot_sim.sim_node'), env=environment,
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert 'MuJoCo cannot render off-screen with MUJOCO_GL=egl' in result.stderr
+    assert 'Traceback' not in result.stderr
