@@ -5,10 +5,12 @@ An independent rclpy client, like ``ros2 topic echo`` would, checks what the sim
 follower publish; the ``followbot`` entry point is run as a person runs the demo.
 """
 
+import os
 from pathlib import Path
 import signal
 import subprocess
 import sys
+import time
 
 from conftest import child_environment, run_domain_id, spin_until
 import cv2
@@ -164,7 +166,8 @@ def child_pids(parent_pid: int) -> list:
     return children
 
 
-def test_followbot_forwards_ctrl_c_and_leaves_no_orphans():
+def start_launcher_and_wait_for_progress() -> tuple:
+    """Start followbot with no end and return it with its children once it reports."""
     launcher = run_launcher(run_domain_id(), '--duration', '0')
     lines = []
     for line in launcher.stdout:
@@ -173,10 +176,36 @@ def test_followbot_forwards_ctrl_c_and_leaves_no_orphans():
             break
     children = child_pids(launcher.pid)
     assert len(children) == 2, ''.join(lines)
+    return launcher, children, lines
+
+
+def wait_until_gone(pids: list, timeout_s: float = STOP_TIMEOUT_S) -> list:
+    """Wait for processes to end; return those still running after the timeout."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        running = [pid for pid in pids if Path(f'/proc/{pid}').exists()]
+        if not running:
+            break
+        time.sleep(0.1)
+    return [pid for pid in pids if Path(f'/proc/{pid}').exists()]
+
+
+def test_followbot_forwards_ctrl_c_and_leaves_no_orphans():
+    launcher, children, lines = start_launcher_and_wait_for_progress()
     launcher.send_signal(signal.SIGINT)
     output, _ = launcher.communicate(timeout=STOP_TIMEOUT_S * 2)
     assert launcher.returncode == 0, ''.join(lines) + output
-    assert not [pid for pid in children if Path(f'/proc/{pid}').exists()]
+    assert not wait_until_gone(children)
+
+
+def test_followbot_killed_outright_takes_its_nodes_with_it():
+    launcher, children, _ = start_launcher_and_wait_for_progress()
+    launcher.kill()
+    launcher.communicate(timeout=STOP_TIMEOUT_S)
+    still_running = wait_until_gone(children)
+    for pid in still_running:
+        os.kill(pid, signal.SIGKILL)
+    assert not still_running
 
 
 def test_followbot_fails_when_a_node_fails():
