@@ -9,6 +9,7 @@ DEMO_ARGS ?= --duration 240 --pictures-dir pictures
 STAMP := $(VENV)/.followbot-installed
 # Debian's Mesa EGL stack: MuJoCo renders off-screen with it, on the CPU, without a display.
 MESA_EGL_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2
+LDCONFIG := $(shell command -v ldconfig || echo /sbin/ldconfig)
 
 .PHONY: demo test setup system-deps clean
 
@@ -21,12 +22,20 @@ test: $(STAMP)
 setup: $(STAMP)
 
 system-deps:
-	@if ldconfig -p | grep -q libEGL_mesa.so.0 && ldconfig -p | grep -q libEGL.so.1; then \
-		echo 'Mesa EGL present.'; \
-	else \
+	@missing=""; \
+	if ! $(LDCONFIG) -p | grep -q libEGL_mesa.so.0 || ! $(LDCONFIG) -p | grep -q libEGL.so.1; then \
+		missing="$(MESA_EGL_PACKAGES)"; \
+	fi; \
+	if ! $(PYTHON) -c 'import ensurepip, venv' 2> /dev/null; then \
+		missing="$$missing python3-venv"; \
+	fi; \
+	if [ -n "$$missing" ]; then \
 		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+		echo "Installing Debian packages:$$missing"; \
 		$$SUDO apt-get update -qq && \
-		DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $(MESA_EGL_PACKAGES); \
+		DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
+	else \
+		echo 'Mesa EGL and Python venv present.'; \
 	fi
 
 $(STAMP): requirements.txt requirements-test.txt setup.py | system-deps
