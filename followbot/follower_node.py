@@ -27,8 +27,8 @@ STOP_ACK_TIMEOUT = Duration(seconds=0.5)
 IMAGE_WATCH_PERIOD_S = 0.1
 
 # Range and meaning (or, for a text, just the meaning) of each detector and controller
-# parameter. Defaults come from
-# DetectorConfig and ControllerConfig, so the two can never disagree.
+# parameter. Defaults come from DetectorConfig and ControllerConfig, so the two can never
+# disagree.
 DETECTOR_PARAMETERS = {
     'hue_min': (0, 179, 'Lowest hue of the line, OpenCV units (0-179, 2 degrees each).'),
     'hue_max': (0, 179, 'Highest hue of the line, OpenCV units (0-179, 2 degrees each).'),

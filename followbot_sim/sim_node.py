@@ -19,7 +19,7 @@ from followbot_sim.course import COURSES, LapTracker, make_course
 from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits,
                                       KOBUKI_COMMAND_TIMEOUT_S,
                                       KOBUKI_MAX_ANGULAR_SPEED_RADPS,
-                                      KOBUKI_MAX_LINEAR_SPEED_MPS)
+                                      KOBUKI_MAX_LINEAR_SPEED_MPS, TIME_EPSILON_S)
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
                                  FollowbotWorld, RenderingUnavailableError)
 from geometry_msgs.msg import Twist
@@ -75,6 +75,12 @@ MAX_CATCH_UP_WALL_S = 0.1
 # Fall this far behind the requested real-time factor and the pacing restarts from now
 # instead of fast-forwarding through the backlog.
 MAX_PACING_LAG_S = 0.5
+TRAIL_SPACING_M = 0.01
+
+
+def _reached(time_s: float, target_s: float) -> bool:
+    """Tell whether simulated time has reached a target, allowing for step-sum float drift."""
+    return time_s + TIME_EPSILON_S >= target_s
 
 
 def _stamp(time_s: float) -> Time:
@@ -224,29 +230,39 @@ class SimulatorNode(Node):
         time_s = world.time_s
         x_m, y_m, _ = world.robot_pose()
         self._lap_tracker.update(x_m, y_m, time_s)
-        self._trail_xy.append((x_m, y_m))
+        self._record_trail(x_m, y_m)
         stamp = _stamp(time_s)
         self._clock_publisher.publish(ClockMsg(clock=stamp))
-        # A small epsilon absorbs float drift of the accumulated step times.
-        if time_s + 1e-9 >= self._next_frame_s:
+        if _reached(time_s, self._next_frame_s):
             self._next_frame_s += self._frame_period_s
             self._publish_camera(stamp)
-        if time_s + 1e-9 >= self._next_overview_s:
+        if _reached(time_s, self._next_overview_s):
             self._next_overview_s += self._overview_period_s
             if self._overview_publisher.get_subscription_count() > 0:
                 self._publish_overview(stamp)
         self._report_laps()
-        if time_s + 1e-9 >= self._next_score_s:
+        score_due = _reached(time_s, self._next_score_s)
+        if score_due:
             self._next_score_s += self._score_period_s
+        finishing = self._run_duration_s > 0.0 and _reached(time_s, self._run_duration_s)
+        if score_due or finishing:
             self._publish_score(stamp)
-        if self._run_duration_s > 0.0 and time_s + 1e-9 >= self._run_duration_s:
-            self._publish_score(stamp)
+        if finishing:
             self._finished = True
             summary = self._lap_tracker.summary()
             self.get_logger().info(
                 f"Run of {time_s:.1f} s simulated time done: {summary['laps_completed']} laps, "
                 f"cross-track RMS {100 * summary['rms_distance_from_line_m']:.1f} cm, "
                 f"max {100 * summary['max_distance_from_line_m']:.1f} cm.")
+
+    def _record_trail(self, x_m: float, y_m: float) -> None:
+        # Every tick would store 100 points a second for as long as the run lasts; a point a
+        # centimetre draws the same path in the overview.
+        if self._trail_xy:
+            last_x_m, last_y_m = self._trail_xy[-1]
+            if math.hypot(x_m - last_x_m, y_m - last_y_m) < TRAIL_SPACING_M:
+                return
+        self._trail_xy.append((x_m, y_m))
 
     def _publish_camera(self, stamp: Time) -> None:
         rgb = self._world.render_camera()
