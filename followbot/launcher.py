@@ -218,7 +218,8 @@ def main(argv=None) -> int:
     environment = dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
     if options.domain_id is not None:
         environment['ROS_DOMAIN_ID'] = str(options.domain_id)
-    domain_id = int(environment.get('ROS_DOMAIN_ID', '0'))
+    # ROS reads an empty ROS_DOMAIN_ID as the default domain, 0.
+    domain_id = int(environment.get('ROS_DOMAIN_ID') or '0')
 
     # Ctrl-C reaches this process only (children run in their own sessions): forward it.
     interrupted = threading.Event()
