@@ -2,17 +2,19 @@
 Convert between sensor_msgs/msg/Image and NumPy arrays, replacing cv_bridge.
 
 cv_bridge is not available without a ROS install and breaks under NumPy 2, so followbot owns
-the small part of it that it needs: the 8-bit colour and mono encodings. Row padding
-(``step``) is honoured, every field is validated, and one error type is raised.
+the small part of it that it needs: the 8-bit colour and mono encodings, and 32FC1 for depth
+images in metres. Row padding (``step``) and byte order are honoured, every field is validated,
+and one error type is raised.
 """
 
 import array
+import sys
 
 import cv2
 import numpy as np
 from sensor_msgs.msg import Image
 
-SUPPORTED_ENCODINGS = ('bgr8', 'rgb8', 'bgra8', 'rgba8', 'mono8')
+SUPPORTED_ENCODINGS = ('bgr8', 'rgb8', 'bgra8', 'rgba8', 'mono8', '32FC1')
 
 CHANNELS_BY_ENCODING = {
     'bgr8': 3,
@@ -20,7 +22,14 @@ CHANNELS_BY_ENCODING = {
     'bgra8': 4,
     'rgba8': 4,
     'mono8': 1,
+    '32FC1': 1,
 }
+
+# Element type of each channel; 32FC1 is a float32 per pixel (depth in metres, NaN = no return).
+DTYPE_BY_ENCODING = {
+    '32FC1': np.dtype(np.float32),
+}
+BYTE_DTYPE = np.dtype(np.uint8)
 
 # cv2.cvtColor codes that turn each encoding into BGR; bgr8 needs no conversion.
 _BGR_CONVERSION_BY_ENCODING = {
@@ -29,11 +38,12 @@ _BGR_CONVERSION_BY_ENCODING = {
     'rgba8': cv2.COLOR_RGBA2BGR,
     'mono8': cv2.COLOR_GRAY2BGR,
 }
+COLOUR_ENCODINGS = ('bgr8', *_BGR_CONVERSION_BY_ENCODING)
 
 BGR_CHANNELS = 3
 
-# Every supported encoding stores one byte per channel, so byte order does not matter.
-LITTLE_ENDIAN = 0
+# Messages are written in this machine's byte order, and read in either.
+HOST_IS_BIG_ENDIAN = int(sys.byteorder == 'big')
 
 
 class ImageConversionError(ValueError):
@@ -56,6 +66,18 @@ def channels_of(encoding):
             f'{", ".join(SUPPORTED_ENCODINGS)}.') from None
 
 
+def dtype_of(encoding):
+    """
+    Return the NumPy element type of a supported encoding.
+
+    :param encoding: one of SUPPORTED_ENCODINGS.
+    :return: uint8 for the 8-bit encodings, float32 for 32FC1.
+    :raises ImageConversionError: if the encoding is not supported.
+    """
+    channels_of(encoding)
+    return DTYPE_BY_ENCODING.get(encoding, BYTE_DTYPE)
+
+
 def expected_shape(height, width, encoding):
     """
     Return the array shape that holds an image of this size and encoding.
@@ -74,22 +96,24 @@ def expected_shape(height, width, encoding):
 
 def check_array(image, encoding):
     """
-    Check that an array holds a non-empty uint8 image of the given encoding.
+    Check that an array holds a non-empty image of the given encoding.
 
     Only the row and column counts are free; the number of dimensions and channels follow
     from the encoding.
 
     :param image: the array to check.
     :param encoding: one of SUPPORTED_ENCODINGS.
-    :raises ImageConversionError: if the array is not a uint8 ndarray of a matching shape.
+    :raises ImageConversionError: if the array is not an ndarray of the encoding's element
+        type (uint8, or float32 for 32FC1) and shape.
     """
     channels = channels_of(encoding)
+    dtype = dtype_of(encoding)
     if not isinstance(image, np.ndarray):
         raise ImageConversionError(
             f'Expected a numpy.ndarray, got {type(image).__name__}.')
-    if image.dtype != np.uint8:
+    if image.dtype != dtype:
         raise ImageConversionError(
-            f'Expected a uint8 array for encoding {encoding!r}, got dtype {image.dtype}.')
+            f'Expected a {dtype} array for encoding {encoding!r}, got dtype {image.dtype}.')
     if channels == 1:
         shape_matches = image.ndim == 2
     else:
@@ -124,38 +148,47 @@ def _as_flat_bytes(data):
 
 def image_to_array(msg):
     """
-    Return a read-only uint8 array viewing the pixels of an Image message.
+    Return a read-only array viewing the pixels of an Image message.
 
     The array is a view over ``msg.data`` when the data exposes the buffer protocol (as
     rclpy's array.array('B') does): callers must not write to it, and it is marked
-    read-only to enforce that. Row padding beyond ``width * channels`` is skipped by the
-    view's strides, so a padded image gives a non-contiguous array. ``is_bigendian`` is
-    accepted either way because every supported encoding has one byte per channel.
+    read-only to enforce that. Row padding beyond a row's pixels is skipped by the view's
+    strides, so a padded image gives a non-contiguous array. ``is_bigendian`` only matters
+    for 32FC1, whose floats are viewed in the byte order the message declares.
 
     :param msg: a sensor_msgs/msg/Image, or any object with height, width, encoding,
         is_bigendian, step and data.
     :return: shape (height, width, channels) in the message's channel order, or
-        (height, width) for mono8.
+        (height, width) for mono8 and 32FC1; uint8, or float32 for 32FC1.
     :raises ImageConversionError: if the encoding is unsupported, a size is zero, the step
-        is shorter than a row, or the data is shorter than step * height.
+        is shorter than a row or not a whole number of elements, or the data is shorter than
+        step * height.
     """
     channels = channels_of(msg.encoding)
+    dtype = dtype_of(msg.encoding)
     height = int(msg.height)
     width = int(msg.width)
     step = int(msg.step)
     if height < 1 or width < 1:
         raise ImageConversionError(
             f'Image has zero size: height {height}, width {width}.')
-    row_bytes = width * channels
+    row_bytes = width * channels * dtype.itemsize
     if step < row_bytes:
         raise ImageConversionError(
-            f'Image step {step} is smaller than width*channels {row_bytes}.')
+            f'Image step {step} is smaller than a row of {row_bytes} bytes '
+            f'(width * channels * {dtype.itemsize}).')
+    if step % dtype.itemsize:
+        raise ImageConversionError(
+            f'Image step {step} is not a whole number of {dtype.itemsize}-byte elements.')
     flat = _as_flat_bytes(msg.data)
     needed_bytes = step * height
     if flat.size < needed_bytes:
         raise ImageConversionError(
             f'Image data length {flat.size} is shorter than step*height {needed_bytes}.')
     rows = flat[:needed_bytes].reshape(height, step)[:, :row_bytes]
+    if dtype != BYTE_DTYPE:
+        byte_order = '>' if msg.is_bigendian else '<'
+        rows = rows.view(dtype.newbyteorder(byte_order))
     return rows.reshape(expected_shape(height, width, msg.encoding))
 
 
@@ -166,12 +199,17 @@ def to_bgr(image, encoding):
     Works on any row slice of an image from image_to_array, padded or not.
 
     :param image: a uint8 array of the shape the encoding needs.
-    :param encoding: one of SUPPORTED_ENCODINGS.
+    :param encoding: one of COLOUR_ENCODINGS.
     :return: a C-contiguous (H, W, 3) uint8 array. For bgr8 this is ``image`` itself when it
         is already contiguous, so it is as read-only as the input.
-    :raises ImageConversionError: if the encoding or the array is not valid.
+    :raises ImageConversionError: if the encoding has no colour (32FC1) or the encoding or
+        the array is not valid.
     """
     check_array(image, encoding)
+    if encoding not in COLOUR_ENCODINGS:
+        raise ImageConversionError(
+            f'Encoding {encoding!r} is not a colour image; colour encodings are '
+            f'{", ".join(COLOUR_ENCODINGS)}.')
     conversion = _BGR_CONVERSION_BY_ENCODING.get(encoding)
     if conversion is None:
         return np.ascontiguousarray(image)
@@ -182,7 +220,8 @@ def array_to_image(image, encoding, msg=None):
     """
     Fill an Image message with a copy of an array's pixels, packed without row padding.
 
-    :param image: a uint8 array of the shape the encoding needs, any memory layout.
+    :param image: an array of the element type and shape the encoding needs, any memory
+        layout.
     :param encoding: one of SUPPORTED_ENCODINGS, describing the array's channel order.
     :param msg: an Image to fill, keeping its header; a new Image is made when omitted.
         When its data already has the right length the pixels are copied into it in place,
@@ -198,8 +237,8 @@ def array_to_image(image, encoding, msg=None):
     msg.height = int(height)
     msg.width = int(width)
     msg.encoding = encoding
-    msg.is_bigendian = LITTLE_ENDIAN
-    msg.step = int(width) * channels_of(encoding)
+    msg.is_bigendian = HOST_IS_BIG_ENDIAN
+    msg.step = int(width) * channels_of(encoding) * image.itemsize
     # Measured for 640x480x3 on this machine (median, rclpy 7.1.6 message classes):
     # copying into the message's existing array.array('B') in place 26 us (no allocation);
     # array.array.frombytes(ndarray) 43 us, but up to 0.9 ms when each message is dropped
@@ -211,9 +250,9 @@ def array_to_image(image, encoding, msg=None):
     existing = msg.data
     if (isinstance(existing, array.array) and existing.typecode == 'B'
             and len(existing) == image.nbytes):
-        np.frombuffer(existing, dtype=np.uint8).reshape(image.shape)[...] = image
+        np.frombuffer(existing, dtype=image.dtype).reshape(image.shape)[...] = image
         return msg
     data = array.array('B')
-    data.frombytes(np.ascontiguousarray(image))
+    data.frombytes(np.ascontiguousarray(image).reshape(-1).view(np.uint8))
     msg.data = data
     return msg

@@ -6,6 +6,8 @@ from types import SimpleNamespace
 
 from followbot.image_conversion import array_to_image
 from followbot.image_conversion import CHANNELS_BY_ENCODING
+from followbot.image_conversion import COLOUR_ENCODINGS
+from followbot.image_conversion import dtype_of
 from followbot.image_conversion import image_to_array
 from followbot.image_conversion import ImageConversionError
 from followbot.image_conversion import SUPPORTED_ENCODINGS
@@ -31,19 +33,25 @@ YELLOW_BY_ENCODING = {
 
 
 def random_image(height, width, encoding, seed=0):
-    """Return a random uint8 array of the shape an encoding needs."""
+    """Return a random array of the element type and shape an encoding needs."""
     channels = CHANNELS_BY_ENCODING[encoding]
     shape = (height, width) if channels == 1 else (height, width, channels)
-    return np.random.default_rng(seed).integers(0, 256, size=shape, dtype=np.uint8)
+    generator = np.random.default_rng(seed)
+    if dtype_of(encoding) == np.float32:
+        # Depth in metres, with pixels that saw nothing.
+        depth_m = generator.uniform(0.3, 10.0, size=shape).astype(np.float32)
+        depth_m[generator.random(shape) < 0.1] = np.nan
+        return depth_m
+    return generator.integers(0, 256, size=shape, dtype=np.uint8)
 
 
-def padded_message(image, encoding, padding_bytes=PADDING_BYTES):
+def padded_message(image, encoding, padding_elements=PADDING_BYTES):
     """Return an Image whose rows carry garbage padding after the pixels."""
     height, width = image.shape[:2]
-    row_bytes = width * CHANNELS_BY_ENCODING[encoding]
-    step = row_bytes + padding_bytes
+    row_bytes = width * CHANNELS_BY_ENCODING[encoding] * image.itemsize
+    step = row_bytes + padding_elements * image.itemsize
     rows = np.full((height, step), GARBAGE_BYTE, dtype=np.uint8)
-    rows[:, :row_bytes] = image.reshape(height, row_bytes)
+    rows[:, :row_bytes] = image.reshape(height, -1).view(np.uint8)
     return Image(
         height=height, width=width, encoding=encoding, is_bigendian=0, step=step,
         data=array.array('B', rows.tobytes()))
@@ -65,10 +73,12 @@ def test_round_trip(encoding, height, width):
     image = random_image(height, width, encoding)
     msg = array_to_image(image, encoding)
     assert (msg.height, msg.width, msg.encoding) == (height, width, encoding)
-    assert msg.step == width * CHANNELS_BY_ENCODING[encoding]
+    assert msg.step == width * CHANNELS_BY_ENCODING[encoding] * image.itemsize
     assert msg.is_bigendian == 0
     assert len(msg.data) == msg.step * height
-    np.testing.assert_array_equal(image_to_array(msg), image)
+    result = image_to_array(msg)
+    assert result.dtype == image.dtype
+    np.testing.assert_array_equal(result, image)
 
 
 @pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
@@ -79,7 +89,7 @@ def test_padded_step_skips_the_padding(encoding, height, width):
     np.testing.assert_array_equal(result, image)
 
 
-@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+@pytest.mark.parametrize('encoding', COLOUR_ENCODINGS)
 def test_padded_step_garbage_does_not_reach_bgr(encoding):
     image = np.zeros(random_image(3, 5, encoding).shape, dtype=np.uint8)
     result = to_bgr(image_to_array(padded_message(image, encoding)), encoding)
@@ -105,6 +115,25 @@ def test_image_to_array_ignores_byte_order_of_8_bit_data(is_bigendian):
     msg = array_to_image(image, 'rgba8')
     msg.is_bigendian = is_bigendian
     np.testing.assert_array_equal(image_to_array(msg), image)
+
+
+def test_depth_in_big_endian_byte_order_reads_as_the_same_metres():
+    depth_m = random_image(3, 4, '32FC1')
+    msg = array_to_image(depth_m.byteswap(), '32FC1')
+    msg.is_bigendian = 1
+    np.testing.assert_array_equal(image_to_array(msg), depth_m)
+
+
+def test_depth_step_must_hold_whole_floats():
+    msg = array_to_image(random_image(2, 2, '32FC1'), '32FC1')
+    msg.step = 9
+    with pytest.raises(ImageConversionError, match='whole number of 4-byte'):
+        image_to_array(msg)
+
+
+def test_depth_is_not_a_colour_image():
+    with pytest.raises(ImageConversionError, match='not a colour image'):
+        to_bgr(random_image(2, 2, '32FC1'), '32FC1')
 
 
 @pytest.mark.parametrize('data_type', (bytes, bytearray, list, array.array))
@@ -173,7 +202,7 @@ def test_array_to_image_packs_non_contiguous_arrays():
     ({'encoding': '16UC1'}, 'supported encodings are bgr8, rgb8, bgra8, rgba8, mono8'),
     ({'data': bytes(11)}, 'data length 11 is shorter than step*height 12'),
     ({'data': array.array('B')}, 'data length 0 is shorter than step*height 12'),
-    ({'step': 5}, 'step 5 is smaller than width*channels 6'),
+    ({'step': 5}, 'step 5 is smaller than a row of 6 bytes'),
     ({'width': 0, 'step': 0}, 'zero size'),
     ({'height': 0, 'data': b''}, 'zero size'),
     ({'data': [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 256]}, 'not a sequence of bytes'),
@@ -188,6 +217,8 @@ def test_image_to_array_rejects_bad_messages(overrides, message_part):
     (np.zeros((2, 2, 3), np.uint8), 'yuv422', 'Unsupported encoding'),
     (np.zeros((2, 2, 3), np.uint16), 'bgr8', 'dtype uint16'),
     (np.zeros((2, 2, 3), np.float32), 'rgb8', 'dtype float32'),
+    (np.zeros((2, 2), np.float64), '32FC1', 'float32 array'),
+    (np.zeros((2, 2, 1), np.float32), '32FC1', r'shape \(H, W\)'),
     (np.zeros((2, 2), np.uint8), 'bgr8', r'shape \(H, W, 3\)'),
     (np.zeros((2, 2, 4), np.uint8), 'bgr8', r'shape \(H, W, 3\)'),
     (np.zeros((2, 2, 3), np.uint8), 'rgba8', r'shape \(H, W, 4\)'),
@@ -206,7 +237,7 @@ def test_conversion_error_is_a_value_error():
     assert issubclass(ImageConversionError, ValueError)
 
 
-@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+@pytest.mark.parametrize('encoding', COLOUR_ENCODINGS)
 def test_to_bgr_converts_a_known_pixel(encoding):
     pixel, expected_bgr = YELLOW_BY_ENCODING[encoding]
     image = np.zeros(random_image(2, 3, encoding).shape, dtype=np.uint8)
@@ -218,7 +249,7 @@ def test_to_bgr_converts_a_known_pixel(encoding):
     assert tuple(result[1, 2]) == expected_bgr
 
 
-@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+@pytest.mark.parametrize('encoding', COLOUR_ENCODINGS)
 def test_to_bgr_works_on_row_slices_of_padded_images(encoding):
     image = random_image(10, 9, encoding, seed=2)
     view = image_to_array(padded_message(image, encoding))
