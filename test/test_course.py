@@ -3,14 +3,18 @@
 import json
 import math
 
+from followbot_sim import course_library
 from followbot_sim.course import BOOK_FLOOR_SIZE_M
 from followbot_sim.course import BOOK_LINE_WIDTH_M
 from followbot_sim.course import book_loop
 from followbot_sim.course import Course
 from followbot_sim.course import COURSES
 from followbot_sim.course import CURVATURE_BASELINE_M
+from followbot_sim.course import Distractor
 from followbot_sim.course import FLOOR_GREY
 from followbot_sim.course import LapTracker
+from followbot_sim.course import LIGHTING_EDGE_RAMP_M
+from followbot_sim.course import LightingZone
 from followbot_sim.course import LINE_RGB
 from followbot_sim.course import make_course
 from followbot_sim.course import MAX_POINT_SPACING_M
@@ -550,3 +554,401 @@ def test_tracker_follows_book_loop_at_the_books_speed(book):
     assert tracker.laps_completed == 1
     assert tracker.lap_times_s[0] == pytest.approx(book.length_m / speed_m_s, abs=1e-3)
     assert tracker.max_distance_from_line_m == pytest.approx(0.0, abs=1e-9)
+
+
+# --- the library's names, still importable from here ----------------------------------------
+
+def test_courses_and_book_loop_are_the_librarys():
+    assert COURSES is course_library.COURSES
+    assert book_loop is course_library.book_loop
+
+
+def test_unknown_module_attributes_still_raise_attribute_error():
+    import followbot_sim.course as course_module
+    with pytest.raises(AttributeError, match='no_such_name'):
+        course_module.no_such_name
+
+
+# --- nearest_near --------------------------------------------------------------------------------
+
+def brute_force_nearest_in_window(course, x_m, y_m, arc_hint_m, window_m):
+    """Return the distance to points sampled every millimetre of a window of arc length."""
+    arcs_m = np.arange(arc_hint_m - window_m, arc_hint_m + window_m + 1e-4, 1e-3)
+    points_xy = np.array([course.point_at(arc_m)[:2] for arc_m in arcs_m])
+    distances_m = np.hypot(points_xy[:, 0] - x_m, points_xy[:, 1] - y_m)
+    return float(distances_m.min()), float(arcs_m[np.argmin(distances_m)] % course.length_m)
+
+
+@pytest.mark.parametrize('x_m, y_m, arc_hint_m, window_m', [
+    (2.2, 0.5, 1.0, 0.5),  # near the hint: the same as the global nearest point
+    (2.0, 0.0, 2.0 * math.pi, 1.0),  # the position is half a loop away from the window
+    (1.9, -0.1, 0.2, 0.6),  # the window wraps round the start
+    (1.9, -0.1, 12.3, 0.6),  # a hint beyond one loop wraps too
+    (0.5, 0.5, -3.0, 0.8),  # negative hint
+])
+def test_nearest_near_finds_the_nearest_point_within_the_arc_window(x_m, y_m, arc_hint_m,
+                                                                    window_m):
+    course = circle_course()
+    distance_m, arc_m = course.nearest_near(x_m, y_m, arc_hint_m, window_m)
+    expected_distance_m, expected_arc_m = brute_force_nearest_in_window(
+        course, x_m, y_m, arc_hint_m, window_m)
+    assert 0.0 <= arc_m < course.length_m
+    # Whole segments are searched, so the result may be up to one segment beyond the window.
+    assert distance_m <= expected_distance_m + 1e-6
+    assert distance_m == pytest.approx(expected_distance_m, abs=MAX_POINT_SPACING_M)
+    arc_error_m = (arc_m - expected_arc_m + course.length_m / 2.0) % course.length_m
+    assert arc_error_m - course.length_m / 2.0 == pytest.approx(0.0, abs=2 * MAX_POINT_SPACING_M)
+
+
+def test_nearest_near_with_a_window_round_the_loop_is_the_global_nearest(book):
+    assert book.nearest_near(0.3, -0.7, 4.0, book.length_m) == book.nearest(0.3, -0.7)
+
+
+def test_nearest_near_rejects_a_non_positive_window(book):
+    with pytest.raises(ValueError, match='window_m'):
+        book.nearest_near(0.0, 0.0, 1.0, 0.0)
+
+
+# --- painting options: dashes, distractors, lighting, floor images ---------------------------
+
+def straight_sided_course(**options):
+    """Build a 4 m x 6 m rectangle whose east side runs north from its start at (2, 0)."""
+    return Course([(2.0, 0.0), (2.0, 3.0), (-2.0, 3.0), (-2.0, -3.0), (2.0, -3.0)],
+                  name='rectangle', **options)
+
+
+def texture_at(course, texture_rgb, x_m, y_m):
+    """Return the texture pixel at a world position."""
+    col, row = course.world_to_texture_px(x_m, y_m, texture_rgb.shape[0])
+    return tuple(int(value) for value in texture_rgb[round(row), round(col)])
+
+
+def test_a_plain_course_has_no_painting_options(book):
+    assert book.dash_length_m is None and book.gap_length_m is None
+    assert book.distractors == () and book.lighting_zones == ()
+    assert book.floor_image_rgb is None
+
+
+@pytest.mark.parametrize('options, error, message', [
+    ({'dash_length_m': 0.3}, ValueError, 'together'),
+    ({'gap_length_m': 0.3}, ValueError, 'together'),
+    ({'dash_length_m': 0.0, 'gap_length_m': 0.1}, ValueError, 'dash_length_m must be positive'),
+    ({'dash_length_m': 0.3, 'gap_length_m': -0.1}, ValueError, 'gap_length_m must be positive'),
+    ({'dash_length_m': math.nan, 'gap_length_m': 0.1}, ValueError, 'finite'),
+    ({'dash_length_m': 15.0, 'gap_length_m': 6.0}, ValueError, 'fit in the loop'),
+    ({'distractors': [(0.0, 0.0, 0.1, 0.1, 0.0)]}, TypeError, 'Distractor'),
+    ({'lighting_zones': [Distractor(0.0, 0.0, 0.1, 0.1)]}, TypeError, 'LightingZone'),
+    ({'floor_image_rgb': np.zeros((8, 8, 3), dtype=np.float32)}, ValueError, 'uint8'),
+    ({'floor_image_rgb': np.zeros((8, 8), dtype=np.uint8)}, ValueError, r'\(H, W, 3\)'),
+    ({'floor_image_rgb': np.zeros((0, 8, 3), dtype=np.uint8)}, ValueError, 'non-empty'),
+    ({'floor_image_rgb': np.zeros((8, 8, 3), dtype=np.uint8), 'dash_length_m': 0.3,
+      'gap_length_m': 0.1}, ValueError, 'cannot paint dashes'),
+])
+def test_course_rejects_invalid_painting_options(options, error, message):
+    with pytest.raises(error, match=message):
+        straight_sided_course(**options)
+
+
+@pytest.mark.parametrize('make, message', [
+    (lambda: Distractor(0.0, 0.0, 0.0, 0.1), 'length_m must be positive'),
+    (lambda: Distractor(0.0, 0.0, 0.1, -0.1), 'width_m must be positive'),
+    (lambda: Distractor(math.inf, 0.0, 0.1, 0.1), 'x_m must be a finite number'),
+    (lambda: Distractor(0.0, 0.0, 0.1, 0.1, 'north'), 'yaw_rad must be a finite number'),
+    (lambda: LightingZone(0.0, 0.0, 0.0, 1.5), 'radius_m must be positive'),
+    (lambda: LightingZone(0.0, 0.0, 1.0, -0.5), 'gain must not be negative'),
+    (lambda: LightingZone(0.0, math.nan, 1.0, 1.5), 'y_m must be a finite number'),
+])
+def test_distractors_and_lighting_zones_reject_invalid_values(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_replace_changes_only_the_options_given(book):
+    zone = LightingZone(0.0, 0.0, 1.0, 1.5)
+    lit = book.replace(lighting_zones=[zone], name='lit')
+    assert lit.name == 'lit' and lit.lighting_zones == (zone,)
+    assert np.array_equal(lit.centre_line_xy, book.centre_line_xy)
+    assert lit.length_m == book.length_m and lit.line_width_m == book.line_width_m
+    assert book.lighting_zones == () and book.name == 'book_loop'
+
+
+def test_replace_can_make_a_dashed_line_solid_again():
+    dashed = straight_sided_course(dash_length_m=0.3, gap_length_m=0.2)
+    solid = dashed.replace(dash_length_m=None, gap_length_m=None)
+    assert solid.dash_length_m is None
+    assert np.array_equal(solid.draw_texture(256), straight_sided_course().draw_texture(256))
+
+
+def test_replace_rejects_unknown_options(book):
+    with pytest.raises(TypeError, match='lighting_zones'):
+        book.replace(lighting=True)
+
+
+@pytest.mark.parametrize('arc_m, expected_m', [
+    (0.0, 0.0), (0.1, 0.1), (0.2, 0.1), (0.3, 0.0), (0.35, -0.05), (0.45, -0.05),
+    (0.5, 0.0), (0.65, 0.15), (19.75, 0.05), (-0.25, 0.05), (20.0, 0.0), (20.1, 0.1),
+])
+def test_dash_signed_distance_is_positive_on_dashes_and_negative_in_gaps(arc_m, expected_m):
+    # 0.3 m dashes every 0.5 m on a 20 m loop: the last dash, from 19.5 m, runs into the first.
+    course = straight_sided_course(dash_length_m=0.3, gap_length_m=0.2)
+    assert course.length_m == pytest.approx(20.0)
+    assert course.dash_signed_distance_m(arc_m) == pytest.approx(expected_m, abs=1e-9)
+
+
+def test_dash_signed_distance_of_a_solid_line_is_infinite(book):
+    assert np.all(np.isinf(book.dash_signed_distance_m([0.0, 3.0])))
+
+
+@pytest.mark.parametrize('dash_length_m, gap_length_m', [(0.3, 0.15), (0.5, 0.5), (0.2, 0.35)])
+def test_dashed_texture_has_dashes_and_gaps_at_their_arc_lengths(dash_length_m, gap_length_m):
+    course = book_loop().replace(dash_length_m=dash_length_m, gap_length_m=gap_length_m)
+    texture_rgb = course.draw_texture(TEXTURE_SIZE_PX)
+    period_m = dash_length_m + gap_length_m
+    for start_m in np.arange(0.0, course.length_m - period_m, period_m):
+        dash_x_m, dash_y_m, _ = course.point_at(start_m + dash_length_m / 2.0)
+        gap_x_m, gap_y_m, _ = course.point_at(start_m + dash_length_m + gap_length_m / 2.0)
+        assert texture_at(course, texture_rgb, dash_x_m, dash_y_m) == LINE_RGB
+        assert texture_at(course, texture_rgb, gap_x_m, gap_y_m) == (FLOOR_GREY,) * 3
+
+
+def test_dashes_keep_the_line_width_and_have_square_ends():
+    size_px = 1000  # 100 px per metre
+    course = straight_sided_course(dash_length_m=0.3, gap_length_m=0.2)
+    texture_rgb = course.draw_texture(size_px)
+    is_line = texture_rgb[:, :, 2] < LINE_BLUE_THRESHOLD
+    # The east side runs north from the start (2, 0): dashes cover y in [0, 0.3), [0.5, 0.8).
+    col, _ = course.world_to_texture_px(2.0, 0.0, size_px)
+    rows_across_dash = [round(course.world_to_texture_px(2.0, y_m, size_px)[1])
+                        for y_m in (0.05, 0.15, 0.25, 0.55, 0.75)]
+    for row in rows_across_dash:
+        assert np.count_nonzero(is_line[row, round(col) - 20:round(col) + 20]) == \
+            pytest.approx(BOOK_LINE_WIDTH_M * 100, abs=2)
+    _, row_03 = course.world_to_texture_px(2.0, 0.3, size_px)
+    _, row_05 = course.world_to_texture_px(2.0, 0.5, size_px)
+    # Every pixel across the line stops at the same row: a square end, not a rounded one.
+    for offset_px in range(-8, 9):
+        ends_col = is_line[:, round(col) + offset_px]
+        assert not ends_col[round(row_05) + 2:round(row_03) - 1].any()
+        assert ends_col[round(row_03) + 1:round(row_03) + 5].all()
+
+
+def test_dashed_line_is_scored_against_the_continuous_centre_line():
+    course = book_loop().replace(dash_length_m=0.3, gap_length_m=0.15)
+    gap_x_m, gap_y_m, _ = course.point_at(0.375)
+    assert course.nearest(gap_x_m, gap_y_m)[0] == pytest.approx(0.0, abs=1e-9)
+    tracker = LapTracker(course)
+    for index, arc_m in enumerate(np.arange(0.0, course.length_m + 0.5, 0.02)):
+        tracker.update(*course.point_at(arc_m)[:2], index * SAMPLE_PERIOD_S)
+    assert tracker.laps_completed == 1
+    assert tracker.time_off_line_s == 0.0
+    assert tracker.max_distance_from_line_m == pytest.approx(0.0, abs=1e-9)
+
+
+def test_distractors_are_painted_in_the_line_colour_and_leave_the_line_alone():
+    patch = Distractor(0.0, 1.0, 0.6, 0.2, math.radians(30.0))
+    course = straight_sided_course(distractors=[patch])
+    texture_rgb = course.draw_texture(TEXTURE_SIZE_PX)
+    plain_rgb = straight_sided_course().draw_texture(TEXTURE_SIZE_PX)
+    assert texture_at(course, texture_rgb, 0.0, 1.0) == LINE_RGB
+    along_x_m, along_y_m = math.cos(patch.yaw_rad), math.sin(patch.yaw_rad)
+    for distance_m, expected_rgb in [(0.25, LINE_RGB), (0.35, (FLOOR_GREY,) * 3)]:
+        x_m, y_m = patch.x_m + distance_m * along_x_m, patch.y_m + distance_m * along_y_m
+        assert texture_at(course, texture_rgb, x_m, y_m) == expected_rgb
+    # Across the patch: 0.1 m either side of its axis is its edge.
+    for distance_m, expected_rgb in [(0.07, LINE_RGB), (0.13, (FLOOR_GREY,) * 3)]:
+        x_m, y_m = patch.x_m - distance_m * along_y_m, patch.y_m + distance_m * along_x_m
+        assert texture_at(course, texture_rgb, x_m, y_m) == expected_rgb
+    changed = np.any(texture_rgb != plain_rgb, axis=2)
+    rows, cols = np.nonzero(changed)
+    assert len(rows) == pytest.approx(0.6 * 0.2 * (TEXTURE_SIZE_PX / 10.0) ** 2, rel=0.1)
+
+
+def test_distractor_area_holds_at_any_angle():
+    areas_px = []
+    for yaw_deg in (0.0, 17.0, 45.0, 90.0):
+        course = straight_sided_course(
+            distractors=[Distractor(0.0, 0.0, 0.5, 0.25, math.radians(yaw_deg))])
+        blue = course.draw_texture(TEXTURE_SIZE_PX)[:, :, 2].astype(float)
+        middle = slice(TEXTURE_SIZE_PX // 2 - 60, TEXTURE_SIZE_PX // 2 + 60)
+        areas_px.append(np.sum(FLOOR_GREY - blue[middle, middle]) / FLOOR_GREY)
+    expected_px = 0.5 * 0.25 * (TEXTURE_SIZE_PX / 10.0) ** 2
+    assert areas_px == pytest.approx([expected_px] * 4, rel=0.01)
+
+
+def test_a_distractor_off_the_floor_edge_is_clipped():
+    course = straight_sided_course(distractors=[Distractor(4.95, -4.95, 0.5, 0.5)])
+    texture_rgb = course.draw_texture(256)
+    assert tuple(texture_rgb[-1, -1]) == LINE_RGB
+
+
+@pytest.mark.parametrize('gain', [1.7, 0.4])
+def test_lighting_zone_scales_floor_and_line_inside_and_nothing_outside(gain):
+    # A pool of light centred on the east side of the rectangle, at (2, 1).
+    zone = LightingZone(2.0, 1.0, 0.8, gain)
+    course = straight_sided_course(lighting_zones=[zone])
+    texture_rgb = course.draw_texture(TEXTURE_SIZE_PX)
+    plain_rgb = straight_sided_course().draw_texture(TEXTURE_SIZE_PX)
+    scaled_floor = min(255, round(FLOOR_GREY * gain))
+    scaled_line = tuple(min(255, round(value * gain)) for value in LINE_RGB)
+    assert texture_at(course, texture_rgb, 2.0, 1.0) == scaled_line
+    assert texture_at(course, texture_rgb, 1.5, 1.0) == (scaled_floor,) * 3
+    inner_m = zone.radius_m - LIGHTING_EDGE_RAMP_M / 2.0
+    assert texture_at(course, texture_rgb, 2.0 - inner_m + 0.02, 1.0) == (scaled_floor,) * 3
+    # Untouched beyond the soft edge, and nowhere else.
+    outer_m = zone.radius_m + LIGHTING_EDGE_RAMP_M / 2.0
+    col, row = course.world_to_texture_px(zone.x_m, zone.y_m, TEXTURE_SIZE_PX)
+    rows, cols = np.nonzero(np.any(texture_rgb != plain_rgb, axis=2))
+    distance_m = np.hypot(rows - row, cols - col) * 10.0 / TEXTURE_SIZE_PX
+    assert distance_m.max() < outer_m + 0.01
+    assert len(rows) > 0.9 * math.pi * (inner_m * TEXTURE_SIZE_PX / 10.0) ** 2
+
+
+def test_lighting_changes_gradually_across_the_soft_edge():
+    zone = LightingZone(0.0, 0.0, 1.0, 1.7)
+    texture_rgb = straight_sided_course(lighting_zones=[zone]).draw_texture(1000)
+    # A row through the centre, west to east: floor grey rising to the full gain and back.
+    grey = texture_rgb[500, 350:650, 0].astype(int)
+    assert grey.min() == FLOOR_GREY and grey.max() == round(FLOOR_GREY * 1.7)
+    steps = np.abs(np.diff(grey))
+    # 81 grey levels over the 0.25 m (25 px) ramp: no jump bigger than a few levels.
+    assert steps.max() <= 6
+    assert np.count_nonzero((grey > FLOOR_GREY) & (grey < grey.max())) >= 2 * 20
+
+
+def test_overlapping_lighting_zones_multiply():
+    zones = [LightingZone(0.0, 0.0, 1.0, 2.0), LightingZone(0.0, 0.0, 1.0, 0.5)]
+    texture_rgb = straight_sided_course(lighting_zones=zones).draw_texture(256)
+    assert tuple(texture_rgb[128, 128]) == (FLOOR_GREY,) * 3
+
+
+def block_image(blocks_rgb, block_px):
+    """Build an image of uniform square blocks, one per entry of a (rows, cols, 3) array."""
+    return np.repeat(np.repeat(np.asarray(blocks_rgb, dtype=np.uint8), block_px, axis=0),
+                     block_px, axis=1)
+
+
+FLOOR_BLOCKS_RGB = [[(200, 10, 10), (10, 200, 10)], [(10, 10, 200), (250, 250, 250)]]
+
+
+def test_floor_image_round_trips_through_draw_texture_at_its_size():
+    image_rgb = np.random.default_rng(3).integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    course = straight_sided_course(floor_image_rgb=image_rgb)
+    texture_rgb = course.draw_texture(64)
+    assert np.array_equal(texture_rgb, image_rgb)
+    texture_rgb[0, 0] = 0  # the texture is a copy: the course keeps its image
+    assert np.array_equal(course.floor_image_rgb, image_rgb)
+
+
+@pytest.mark.parametrize('size_px', [32, 64, 200])
+def test_floor_image_is_resized_keeping_north_up_and_its_colours(size_px):
+    image_rgb = block_image(FLOOR_BLOCKS_RGB, 64)
+    course = straight_sided_course(floor_image_rgb=image_rgb)
+    texture_rgb = course.draw_texture(size_px)
+    assert texture_rgb.shape == (size_px, size_px, 3)
+    quarter_px = size_px // 4
+    for row_block in range(2):
+        for col_block in range(2):
+            row = quarter_px + row_block * 2 * quarter_px
+            col = quarter_px + col_block * 2 * quarter_px
+            assert tuple(texture_rgb[row, col]) == FLOOR_BLOCKS_RGB[row_block][col_block]
+
+
+def test_floor_image_is_shrunk_by_area_averaging():
+    # A one-pixel checkerboard averages to a flat grey when halved, as INTER_AREA does.
+    checker = (np.indices((64, 64)).sum(axis=0) % 2 * 200).astype(np.uint8)
+    image_rgb = np.repeat(checker[:, :, np.newaxis], 3, axis=2)
+    texture_rgb = straight_sided_course(floor_image_rgb=image_rgb).draw_texture(32)
+    assert np.all(texture_rgb == 100)
+
+
+def test_floor_image_course_does_not_paint_its_centre_line_but_adds_the_rest():
+    image_rgb = np.full((100, 100, 3), 30, dtype=np.uint8)
+    course = straight_sided_course(floor_image_rgb=image_rgb,
+                                   distractors=[Distractor(0.0, 0.0, 1.0, 1.0)],
+                                   lighting_zones=[LightingZone(-3.0, -3.0, 1.0, 2.0)])
+    texture_rgb = course.draw_texture(200)
+    assert texture_at(course, texture_rgb, 2.0, 1.0) == (30, 30, 30)  # on the centre line
+    assert texture_at(course, texture_rgb, 0.0, 0.0) == LINE_RGB
+    assert texture_at(course, texture_rgb, -3.0, -3.0) == (60, 60, 60)
+    assert course.nearest(2.0, 1.0)[0] == pytest.approx(0.0)
+
+
+def test_floor_image_is_read_only():
+    course = straight_sided_course(floor_image_rgb=np.zeros((4, 4, 3), dtype=np.uint8))
+    with pytest.raises(ValueError):
+        course.floor_image_rgb[0, 0, 0] = 1
+
+
+def test_plain_texture_is_unchanged_by_empty_options(book):
+    assert np.array_equal(book.replace(distractors=(), lighting_zones=()).draw_texture(512),
+                          book.draw_texture(512))
+
+
+# --- LapTracker on lines that cross or pass close by ------------------------------------------
+
+def lemniscate_course():
+    """Build a figure-eight (lemniscate) course that crosses itself at the origin."""
+    parameter_rad = np.linspace(0.0, 2.0 * math.pi, 4000, endpoint=False) + 0.3
+    scale = 3.0 / (1.0 + np.sin(parameter_rad) ** 2)
+    return Course(np.stack([scale * np.cos(parameter_rad),
+                            scale * np.sin(parameter_rad) * np.cos(parameter_rad)], axis=1),
+                  name='lemniscate')
+
+
+def offset_point(course, arc_m, offset_m):
+    """Return the point ``offset_m`` left of the centre line at an arc length."""
+    before_xy = np.array(course.point_at(arc_m - 0.05)[:2])
+    after_xy = np.array(course.point_at(arc_m + 0.05)[:2])
+    tangent_xy = (after_xy - before_xy) / np.linalg.norm(after_xy - before_xy)
+    x_m, y_m, _ = course.point_at(arc_m)
+    return x_m - offset_m * tangent_xy[1], y_m + offset_m * tangent_xy[0]
+
+
+@pytest.mark.parametrize('offset_m', [0.0, 0.04, -0.06])
+def test_tracker_follows_a_self_crossing_line_through_the_crossing(offset_m):
+    course = lemniscate_course()
+    tracker = LapTracker(course)
+    # A centimetre past the second lap mark, which summing the steps may miss by a rounding.
+    end_m = 2.0 * course.length_m + 0.01
+    arcs_m = np.linspace(0.0, end_m, math.ceil(end_m / (DRIVE_SPEED_M_S * SAMPLE_PERIOD_S)) + 1)
+    hops_of_the_global_nearest = 0
+    for index, arc_m in enumerate(arcs_m):
+        x_m, y_m = offset_point(course, arc_m, offset_m)
+        _, global_arc_m = course.nearest(x_m, y_m)
+        if abs((global_arc_m - arc_m + course.length_m / 2.0) % course.length_m
+               - course.length_m / 2.0) > 1.0:
+            hops_of_the_global_nearest += 1
+        tracker.update(x_m, y_m, index * SAMPLE_PERIOD_S)
+    assert tracker.laps_completed == 2
+    assert tracker.arc_jumps == 0
+    assert tracker.progress_m == pytest.approx(end_m, abs=1e-2)
+    assert tracker.max_distance_from_line_m == pytest.approx(abs(offset_m), abs=2e-3)
+    if offset_m != 0.0:
+        # The globally nearest point does hop to the other branch near the crossing.
+        assert hops_of_the_global_nearest > 0
+
+
+def test_a_short_cut_across_the_book_loop_earns_no_lap(book):
+    tracker = LapTracker(book)
+    time_s = 0.0
+    step_m = DRIVE_SPEED_M_S * SAMPLE_PERIOD_S
+
+    def drive(points_xy):
+        nonlocal time_s
+        for x_m, y_m in points_xy:
+            tracker.update(x_m, y_m, time_s)
+            time_s += SAMPLE_PERIOD_S
+
+    # Along the east side, straight across to the west side, then on round to the start.
+    drive(book.point_at(arc_m)[:2] for arc_m in np.arange(0.0, 2.0, step_m))
+    east_xy = np.array(book.point_at(2.0)[:2])
+    west_xy = np.array(book.point_at(9.8)[:2])
+    across_m = np.linalg.norm(west_xy - east_xy)
+    drive(east_xy + fraction * (west_xy - east_xy)
+          for fraction in np.arange(0.0, 1.0, step_m / across_m))
+    drive(book.point_at(arc_m)[:2] for arc_m in np.arange(9.8, book.length_m + 0.5, step_m))
+    assert tracker.laps_completed == 0
+    assert tracker.arc_jumps == 1
+    # What was driven along the line, plus a little where the cut left it at an angle.
+    driven_along_line_m = 2.0 + book.length_m + 0.5 - 9.8
+    assert driven_along_line_m <= tracker.progress_m < driven_along_line_m + across_m / 2.0
