@@ -4,25 +4,40 @@ The MuJoCo world of the follow-bot: a TurtleBot 2 on a course, stepped and rende
 No ROS import: the simulator node wires this to topics, and tests and benchmarks use it directly.
 Rendering needs an OpenGL context; headless machines use ``MUJOCO_GL=egl`` (Mesa on the CPU).
 The context belongs to the thread that first renders, so render from one thread only.
+
+The robot carries a Kinect: an RGB camera ``camera_rgb`` and, 2.5 cm to its left, a depth (IR)
+camera ``camera_depth`` with the same orientation and intrinsics. The whole Kinect
+(``camera_link``) is tilted down by the camera pitch; :meth:`FollowbotWorld.sensor_frames` gives
+the robot's fixed frames read from the compiled model.
 """
 
 import math
 import os
 from pathlib import Path
 import sys
+import time
 
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
+from followbot_sim.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPTH_FRAME,
+                                  CAMERA_DEPTH_OPTICAL_FRAME, CAMERA_LINK_FRAME, CAMERA_RGB_FRAME,
+                                  CAMERA_RGB_OPTICAL_FRAME, FrameTransform,
+                                  optical_rotation_xyzw, quaternion_from_matrix)
 import mujoco
 import numpy as np
 
 PACKAGE_NAME = 'followbot'
 SCENE_FILE = 'scene.xml'
-ROBOT_BODY = 'base_footprint'
+ROBOT_BODY = BASE_FOOTPRINT_FRAME
 ROBOT_FREE_JOINT = 'base_free'
+# The bodies of the robot's fixed frames carry the frames' names.
+BASE_LINK_BODY = BASE_LINK_FRAME
+CAMERA_LINK_BODY = CAMERA_LINK_FRAME
 CAMERA_NAME = 'camera_rgb'
+DEPTH_CAMERA_NAME = 'camera_depth'
 OVERVIEW_CAMERA_NAME = 'overview'
 COURSE_TEXTURE_NAME = 'course'
+FLOOR_GEOM = 'floor'
 LEFT_MOTOR = 'wheel_left_motor'
 RIGHT_MOTOR = 'wheel_right_motor'
 LEFT_WHEEL_JOINT = 'wheel_left_joint'
@@ -37,10 +52,39 @@ DEFAULT_HORIZONTAL_FOV_DEG = 60.0
 # to track, so it cuts them by tens of centimetres. Tilted down 30 degrees the same band sees
 # ~0.45 m ahead of the robot centre and the robot stays on the line.
 DEFAULT_CAMERA_PITCH_DEG = 30.0
+# The range a Kinect (v1) reports depth in; beyond it a real one reads no data (NaN). The far
+# limit is the default; the near one is not: tilted down 30 degrees, the camera sees the floor
+# at the follower's band rows ~0.44 m away, and simulated depth there is worth having. Pass
+# min_depth_m=KINECT_MIN_DEPTH_M for a Kinect's blind zone.
+KINECT_MIN_DEPTH_M = 0.45
+KINECT_MAX_DEPTH_M = 8.0
+DEFAULT_MIN_DEPTH_M = 0.0
+DEFAULT_MAX_DEPTH_M = KINECT_MAX_DEPTH_M
+# MuJoCo cameras look along their -z axis with +y up: the columns of this matrix are the axes of
+# a REP-103 body frame (x forward, y left, z up) in MuJoCo camera coordinates.
+MUJOCO_CAMERA_TO_BODY_AXES = np.array([[0.0, -1.0, 0.0],
+                                       [0.0, 0.0, 1.0],
+                                       [-1.0, 0.0, 0.0]])
+# A pixel where nothing was hit reads as the far clipping distance, up to float32 rounding.
+FAR_PLANE_FRACTION = 0.999
+# The noise bank holds this many frames' worth of values; each frame reads it from a random
+# offset, so consecutive frames get different noise at every pixel without drawing new normals.
+NOISE_BANK_FRAMES = 2
+MAX_INTENSITY = 255
+# The passive viewer copies the whole state on every sync: a screen's refresh rate is plenty,
+# and the physics (500 steps/s) is not slowed by syncing after each step.
+VIEWER_SYNC_PERIOD_S = 1.0 / 60.0
+# The viewer's camera starts behind the robot, looking down on it and the line ahead.
+VIEWER_DISTANCE_M = 2.5
+VIEWER_ELEVATION_DEG = -30.0
 
 
 class RenderingUnavailableError(RuntimeError):
     """MuJoCo cannot render off-screen on this machine; the message says what to check."""
+
+
+class ViewerUnavailableError(RuntimeError):
+    """MuJoCo's interactive viewer cannot open here (no display); the message says why."""
 
 
 def models_directory() -> Path:
@@ -79,12 +123,18 @@ def focal_length_px(image_width_px: int, horizontal_fov_deg: float) -> float:
     return (image_width_px / 2.0) / math.tan(math.radians(horizontal_fov_deg) / 2.0)
 
 
+def _mujoco_to_xyzw(quaternion_wxyz) -> tuple[float, float, float, float]:
+    w, x, y, z = (float(value) for value in quaternion_wxyz)
+    return x, y, z, w
+
+
 class FollowbotWorld:
     """
     A TurtleBot 2 with a Kinect-style camera on a course, in MuJoCo.
 
     Drive it with :meth:`set_twist` or :meth:`set_wheel_speeds`, advance it with :meth:`step`,
-    read the camera with :meth:`render_camera` and the true pose with :meth:`robot_pose`.
+    read the cameras with :meth:`render_camera` and :meth:`render_depth`, the wheel encoders
+    with :meth:`wheel_angles`, and the true pose with :meth:`robot_pose`.
     """
 
     def __init__(self, course: Course, image_width_px: int = DEFAULT_IMAGE_WIDTH_PX,
@@ -92,20 +142,33 @@ class FollowbotWorld:
                  horizontal_fov_deg: float = DEFAULT_HORIZONTAL_FOV_DEG,
                  camera_pitch_deg: float = DEFAULT_CAMERA_PITCH_DEG,
                  texture_size_px: int = 2048, limits: DiffDriveLimits = DiffDriveLimits(),
-                 models_dir: Path | None = None):
+                 models_dir: Path | None = None, camera_noise_stddev: float = 0.0,
+                 noise_seed: int = 0, min_depth_m: float = DEFAULT_MIN_DEPTH_M,
+                 max_depth_m: float = DEFAULT_MAX_DEPTH_M):
         """
         Load the scene, paint the course on the floor and put the robot at the course start.
 
+        The floor plane takes the course's ``floor_size_m`` and the overview camera rises with
+        it, so the overview always shows the whole floor.
+
         :param course: the course whose line is painted and where the robot starts.
-        :param image_width_px: camera image width in pixels.
-        :param image_height_px: camera image height in pixels.
+        :param image_width_px: camera image width in pixels (RGB and depth).
+        :param image_height_px: camera image height in pixels (RGB and depth).
         :param horizontal_fov_deg: camera horizontal field of view in degrees.
-        :param camera_pitch_deg: downward tilt of the camera from level, in degrees.
+        :param camera_pitch_deg: downward tilt of the Kinect from level, in degrees.
         :param texture_size_px: side of the square floor texture in pixels.
         :param limits: geometry and speed limits of the base.
         :param models_dir: folder with ``scene.xml``; found automatically when None.
-        :raises ValueError: for a non-positive image size, a field of view outside (0, 180) or
-            a pitch outside [-90, 90].
+        :param camera_noise_stddev: standard deviation of the Gaussian noise added to every RGB
+            frame, in 8-bit intensity levels; 0 leaves frames untouched.
+        :param noise_seed: seed of the noise generator (PCG64), a non-negative integer.
+        :param min_depth_m: nearer depths read as NaN; 0 (the default) keeps all, a Kinect's
+            blind zone is ``KINECT_MIN_DEPTH_M`` (0.45 m).
+        :param max_depth_m: farther depths read as NaN (the Kinect's ~8 m; ``math.inf`` keeps
+            all up to the renderer's far clipping plane).
+        :raises ValueError: for a non-positive image size, a field of view outside (0, 180),
+            a pitch outside [-90, 90], a negative or non-finite noise level, a negative seed or
+            a depth range that is not 0 <= min < max.
         """
         if image_width_px <= 0 or image_height_px <= 0:
             raise ValueError(
@@ -115,9 +178,19 @@ class FollowbotWorld:
                 f'horizontal_fov_deg must be in (0, 180), got {horizontal_fov_deg}.')
         if not -90.0 <= camera_pitch_deg <= 90.0:
             raise ValueError(f'camera_pitch_deg must be in [-90, 90], got {camera_pitch_deg}.')
+        if not (math.isfinite(camera_noise_stddev) and camera_noise_stddev >= 0.0):
+            raise ValueError('camera_noise_stddev must be a finite number >= 0 (intensity '
+                             f'levels), got {camera_noise_stddev}.')
+        if int(noise_seed) != noise_seed or noise_seed < 0:
+            raise ValueError(f'noise_seed must be a non-negative integer, got {noise_seed!r}.')
+        if not 0.0 <= min_depth_m < max_depth_m:
+            raise ValueError('The depth range must satisfy 0 <= min_depth_m < max_depth_m, got '
+                             f'min_depth_m={min_depth_m}, max_depth_m={max_depth_m}.')
         self._course = course
         self._limits = limits
         self._image_size_px = (image_width_px, image_height_px)
+        self._camera_pitch_deg = float(camera_pitch_deg)
+        self._fx_px = focal_length_px(image_width_px, horizontal_fov_deg)
         models_dir = Path(models_dir) if models_dir is not None else models_directory()
         spec = mujoco.MjSpec.from_file(str(models_dir / SCENE_FILE))
         spec.texture(COURSE_TEXTURE_NAME).width = texture_size_px
@@ -125,30 +198,70 @@ class FollowbotWorld:
         # The off-screen buffer must hold the camera image; keep room for the overview too.
         spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, image_width_px)
         spec.visual.global_.offheight = max(spec.visual.global_.offheight, image_height_px)
+        self._fit_floor_to_course(spec)
+        self._tilt_kinect(spec, camera_pitch_deg)
+        camera_fovy_deg = math.degrees(2.0 * math.atan((image_height_px / 2.0) / self._fx_px))
+        for camera_name in (CAMERA_NAME, DEPTH_CAMERA_NAME):
+            spec.camera(camera_name).fovy = camera_fovy_deg
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         self._paint_course(texture_size_px)
 
-        self._fx_px = focal_length_px(image_width_px, horizontal_fov_deg)
-        camera_id = self.model.camera(CAMERA_NAME).id
-        self.model.cam_fovy[camera_id] = math.degrees(
-            2.0 * math.atan((image_height_px / 2.0) / self._fx_px))
-        self._camera_id = camera_id
-        # Pitch down = a positive rotation about the body's y axis (left), applied to the
-        # level camera orientation of the model.
-        half_pitch_rad = math.radians(camera_pitch_deg) / 2.0
-        pitch_quat = np.array([math.cos(half_pitch_rad), 0.0, math.sin(half_pitch_rad), 0.0])
-        level_quat = self.model.cam_quat[camera_id].copy()
-        mujoco.mju_mulQuat(self.model.cam_quat[camera_id], pitch_quat, level_quat)
+        self._camera_id = self.model.camera(CAMERA_NAME).id
+        self._depth_camera_id = self.model.camera(DEPTH_CAMERA_NAME).id
         self._left_actuator = self.model.actuator(LEFT_MOTOR).id
         self._right_actuator = self.model.actuator(RIGHT_MOTOR).id
         self._free_joint_qpos = self.model.joint(ROBOT_FREE_JOINT).qposadr[0]
         self._free_joint_qvel = self.model.joint(ROBOT_FREE_JOINT).dofadr[0]
+        self._wheel_qpos = (self.model.joint(LEFT_WHEEL_JOINT).qposadr[0],
+                            self.model.joint(RIGHT_WHEEL_JOINT).qposadr[0])
         self._robot_body = self.model.body(ROBOT_BODY).id
         self._renderer = None
         self._overview_renderer = None
+        self._viewer = None
+        self._last_viewer_sync_s = -math.inf
         self._camera_image = np.empty((image_height_px, image_width_px, 3), np.uint8)
+        self._depth_image = np.empty((image_height_px, image_width_px), np.float32)
+        # The renderer's far clipping plane: MuJoCo scales the model's zfar by its extent.
+        far_clip_m = float(self.model.vis.map.zfar * self.model.stat.extent)
+        self._min_depth_m = float(min_depth_m)
+        self._max_depth_m = min(float(max_depth_m), FAR_PLANE_FRACTION * far_clip_m)
+        self._noise_stddev = float(camera_noise_stddev)
+        self._noise_seed = int(noise_seed)
+        self._noise_bank = None
         self.reset()
+
+    def _fit_floor_to_course(self, spec: mujoco.MjSpec) -> None:
+        """
+        Size the floor plane to the course and raise the overview camera in proportion.
+
+        :param spec: the scene's spec, before compiling.
+        """
+        floor = spec.geom(FLOOR_GEOM)
+        scene_floor_size_m = 2.0 * float(floor.size[0])
+        floor_size_m = float(self._course.floor_size_m)
+        floor.size = [floor_size_m / 2.0, floor_size_m / 2.0, float(floor.size[2])]
+        overview = spec.camera(OVERVIEW_CAMERA_NAME)
+        # Same field of view, height scaled with the floor: the same margin around it.
+        overview.pos = [float(overview.pos[0]), float(overview.pos[1]),
+                        float(overview.pos[2]) * floor_size_m / scene_floor_size_m]
+
+    @staticmethod
+    def _tilt_kinect(spec: mujoco.MjSpec, camera_pitch_deg: float) -> None:
+        """
+        Pitch the whole Kinect (``camera_link`` and the cameras on it) down.
+
+        :param spec: the scene's spec, before compiling.
+        :param camera_pitch_deg: downward tilt in degrees.
+        """
+        # Pitch down = a positive rotation about the body's y axis (left), applied to the
+        # level mounting of the model.
+        half_pitch_rad = math.radians(camera_pitch_deg) / 2.0
+        pitch_quat = np.array([math.cos(half_pitch_rad), 0.0, math.sin(half_pitch_rad), 0.0])
+        camera_link = spec.body(CAMERA_LINK_BODY)
+        tilted_quat = np.empty(4)
+        mujoco.mju_mulQuat(tilted_quat, np.asarray(camera_link.quat, dtype=float), pitch_quat)
+        camera_link.quat = tilted_quat
 
     def _paint_course(self, texture_size_px: int) -> None:
         texture_id = self.model.texture(COURSE_TEXTURE_NAME).id
@@ -181,9 +294,24 @@ class FollowbotWorld:
         """Return the camera image (width, height) in pixels."""
         return self._image_size_px
 
+    @property
+    def camera_pitch_deg(self) -> float:
+        """Return the downward tilt of the Kinect from level in degrees."""
+        return self._camera_pitch_deg
+
+    @property
+    def camera_noise_stddev(self) -> float:
+        """Return the standard deviation of the RGB noise in 8-bit intensity levels."""
+        return self._noise_stddev
+
+    @property
+    def depth_range_m(self) -> tuple[float, float]:
+        """Return the (nearest, farthest) depth in metres that reads as a number, not NaN."""
+        return self._min_depth_m, self._max_depth_m
+
     def camera_intrinsics(self) -> tuple[float, float, float, float]:
         """
-        Return the pinhole intrinsics of the rendered camera image.
+        Return the pinhole intrinsics of the rendered camera images, RGB and depth alike.
 
         MuJoCo's camera is an ideal pinhole with square pixels; the principal point is the image
         centre in the ROS convention where pixel centres sit at integer coordinates.
@@ -193,15 +321,112 @@ class FollowbotWorld:
         width_px, height_px = self._image_size_px
         return self._fx_px, self._fx_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0
 
+    def sensor_frames(self) -> list[FrameTransform]:
+        """
+        Return the robot's fixed frames, read from the compiled model.
+
+        The chain is base_footprint -> base_link -> camera_link (with the Kinect's pitch) ->
+        camera_rgb_frame -> camera_rgb_optical_frame, and camera_link -> camera_depth_frame ->
+        camera_depth_optical_frame. With ``world -> base_footprint`` from :meth:`robot_pose`
+        and :meth:`camera_intrinsics` it maps floor points to where MuJoCo draws them.
+
+        :return: the transforms, parents before children.
+        """
+        transforms = [self._body_transform(BASE_LINK_BODY),
+                      self._body_transform(CAMERA_LINK_BODY)]
+        for camera_id, body_frame, optical_frame in (
+                (self._camera_id, CAMERA_RGB_FRAME, CAMERA_RGB_OPTICAL_FRAME),
+                (self._depth_camera_id, CAMERA_DEPTH_FRAME, CAMERA_DEPTH_OPTICAL_FRAME)):
+            parent = self.model.body(self.model.cam_bodyid[camera_id]).name
+            camera_axes = np.empty(9)
+            mujoco.mju_quat2Mat(camera_axes, self.model.cam_quat[camera_id])
+            body_axes = camera_axes.reshape(3, 3) @ MUJOCO_CAMERA_TO_BODY_AXES
+            transforms.append(FrameTransform(parent, body_frame,
+                                             tuple(self.model.cam_pos[camera_id]),
+                                             quaternion_from_matrix(body_axes)))
+            transforms.append(FrameTransform(body_frame, optical_frame,
+                                             rotation_xyzw=optical_rotation_xyzw()))
+        return transforms
+
+    def _body_transform(self, body_name: str) -> FrameTransform:
+        """
+        Return the fixed pose of a body in its parent body, as a transform between their frames.
+
+        :param body_name: a body whose frame has the body's name.
+        :return: the transform from the parent body's frame to the body's.
+        """
+        body = self.model.body(body_name)
+        parent = self.model.body(body.parentid[0]).name
+        return FrameTransform(parent, body_name, tuple(body.pos), _mujoco_to_xyzw(body.quat))
+
     def reset(self) -> None:
         """Put the robot at rest at the course start and set the time to zero."""
         mujoco.mj_resetData(self.model, self.data)
+        self._place_robot_at_start()
+        self._draw_noise_bank()
+
+    def reset_robot(self) -> None:
+        """
+        Put the robot at rest at the course start, keeping the simulated time running on.
+
+        The simulator's clock never goes backwards. The wheel angles are kept, as a real
+        robot's encoders keep their counts when it is carried back: wheel odometry sees no
+        motion (restart it if it should read the start).
+        """
+        time_s = self.data.time
+        wheel_angles_rad = self.data.qpos[list(self._wheel_qpos)].copy()
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.time = time_s
+        self.data.qpos[list(self._wheel_qpos)] = wheel_angles_rad
+        self._place_robot_at_start()
+
+    def _place_robot_at_start(self) -> None:
         x_m, y_m, yaw_rad = self._course.start_pose()
         qpos = self._free_joint_qpos
         self.data.qpos[qpos:qpos + 3] = (x_m, y_m, 0.0)
         self.data.qpos[qpos + 3:qpos + 7] = (math.cos(yaw_rad / 2.0), 0.0, 0.0,
                                              math.sin(yaw_rad / 2.0))
         mujoco.mj_forward(self.model, self.data)
+
+    def _draw_noise_bank(self) -> None:
+        """Draw the noise bank from the seed, the first time noise is needed."""
+        if self._noise_stddev == 0.0 or self._noise_bank is not None:
+            return
+        generator = np.random.Generator(np.random.PCG64(self._noise_seed))
+        width_px, height_px = self._image_size_px
+        bank_size = NOISE_BANK_FRAMES * height_px * width_px * 3
+        levels = np.rint(generator.standard_normal(bank_size, dtype=np.float32)
+                         * np.float32(self._noise_stddev))
+        np.clip(levels, -MAX_INTENSITY, MAX_INTENSITY, out=levels)
+        raise_levels = np.maximum(levels, 0.0).astype(np.uint8)
+        lower_levels = np.maximum(-levels, 0.0).astype(np.uint8)
+        # (raise, headroom below saturation, lower): see _add_camera_noise.
+        self._noise_bank = (raise_levels, MAX_INTENSITY - raise_levels, lower_levels)
+
+    def _add_camera_noise(self, image: np.ndarray) -> None:
+        """
+        Add the noise of this instant to an RGB image in place, saturating at 0 and 255.
+
+        Reads the bank from an offset drawn from the seed and the physics step count, so a
+        frame's noise depends only on when it is taken, not on how many frames were rendered
+        before: a simulator that skips frames nobody watches still repeats its runs exactly.
+        Each value either raises or lowers its pixel, so min(x, 255 - raise) + raise then
+        max(x, lower) - lower is clip(x + noise, 0, 255) in four uint8 operations without
+        overflow.
+
+        :param image: a C-contiguous uint8 image.
+        """
+        raise_levels, headroom_levels, lower_levels = self._noise_bank
+        size = image.size
+        step_index = round(self.data.time / self.model.opt.timestep)
+        generator = np.random.Generator(np.random.PCG64([self._noise_seed, step_index]))
+        offset = int(generator.integers(0, len(raise_levels) - size, endpoint=True))
+        window = slice(offset, offset + size)
+        flat = image.reshape(-1)
+        np.minimum(flat, headroom_levels[window], out=flat)
+        flat += raise_levels[window]
+        np.maximum(flat, lower_levels[window], out=flat)
+        flat -= lower_levels[window]
 
     def set_wheel_speeds(self, left_radps: float, right_radps: float) -> None:
         """
@@ -255,6 +480,16 @@ class FollowbotWorld:
         forward_mps = vx * math.cos(yaw_rad) + vy * math.sin(yaw_rad)
         return float(forward_mps), float(self.data.qvel[qvel + 5])
 
+    def wheel_angles(self) -> tuple[float, float]:
+        """
+        Return the wheel joint angles, as encoders would count them.
+
+        :return: (left, right) in radians, increasing when rolling forward, zero at
+            :meth:`reset`.
+        """
+        left, right = self._wheel_qpos
+        return float(self.data.qpos[left]), float(self.data.qpos[right])
+
     def wheel_speeds(self) -> tuple[float, float]:
         """
         Return the measured wheel speeds.
@@ -276,19 +511,54 @@ class FollowbotWorld:
                 'machines need Mesa EGL (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri); '
                 'MUJOCO_GL=osmesa or glfw (with a display) are alternatives.') from error
 
+    def _camera_renderer(self) -> mujoco.Renderer:
+        if self._renderer is None:
+            width_px, height_px = self._image_size_px
+            self._renderer = self._make_renderer(height_px, width_px)
+        return self._renderer
+
     def render_camera(self) -> np.ndarray:
         """
-        Render the robot's RGB camera.
+        Render the robot's RGB camera, with its noise if any.
 
         The returned array is reused by the next call: copy it to keep it.
 
         :return: an RGB uint8 array of shape (height, width, 3).
         """
-        if self._renderer is None:
-            width_px, height_px = self._image_size_px
-            self._renderer = self._make_renderer(height_px, width_px)
-        self._renderer.update_scene(self.data, camera=self._camera_id)
-        return self._renderer.render(out=self._camera_image)
+        renderer = self._camera_renderer()
+        renderer.disable_depth_rendering()
+        renderer.update_scene(self.data, camera=self._camera_id)
+        image = renderer.render(out=self._camera_image)
+        if self._noise_bank is not None:
+            self._add_camera_noise(image)
+        return image
+
+    def render_depth(self) -> np.ndarray:
+        """
+        Render the Kinect's depth camera as metric depth, like a ROS ``32FC1`` depth image.
+
+        Each pixel holds z in ``camera_depth_optical_frame`` (the distance along the optical
+        axis, not along the ray) in metres. MuJoCo's Renderer in depth mode already returns
+        this linear depth (it undoes the projection of the depth buffer). NaN marks no data:
+        pixels that hit nothing (sky, and beyond the floor's edge; they read as the far
+        clipping plane, ``zfar * extent`` of the model, ~53 m) and depths outside
+        :attr:`depth_range_m` (``min_depth_m`` and ``max_depth_m`` of the constructor: 0-8 m
+        by default; a real Kinect's is ~0.45-8 m). The renderer's near clipping plane
+        (``znear * extent``, ~1 cm) clips nothing the camera can see. The depth camera is
+        another viewpoint than the RGB camera, so rendering both costs two passes.
+
+        The returned array is reused by the next call: copy it to keep it.
+
+        :return: a float32 array of shape (height, width).
+        """
+        renderer = self._camera_renderer()
+        renderer.enable_depth_rendering()
+        renderer.update_scene(self.data, camera=self._depth_camera_id)
+        depth_m = renderer.render(out=self._depth_image)
+        renderer.disable_depth_rendering()
+        np.copyto(depth_m, np.nan,
+                  where=(depth_m < self._min_depth_m) | (depth_m > self._max_depth_m))
+        return depth_m
 
     def render_overview(self, size_px: int = 800) -> np.ndarray:
         """
@@ -321,8 +591,64 @@ class FollowbotWorld:
         rows = centre_px - focal_px * (points_xy[:, 1] - camera.pos[1]) / height_m
         return np.stack([columns, rows], axis=1)
 
+    def open_viewer(self) -> None:
+        """
+        Open MuJoCo's interactive viewer on this world; it shows the state at each sync.
+
+        The viewer runs in its own thread with its own (GLFW) OpenGL context, beside the
+        off-screen renderer. Opening it again while it is open does nothing.
+
+        :raises ViewerUnavailableError: if no display is set (``DISPLAY`` or
+            ``WAYLAND_DISPLAY``) or the viewer fails to start.
+        """
+        if self._viewer is not None and self._viewer.is_running():
+            return
+        if not (os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')):
+            raise ViewerUnavailableError(
+                "MuJoCo's viewer needs a display, and neither DISPLAY nor WAYLAND_DISPLAY is "
+                'set (a headless machine can run one with Xvfb).')
+        try:
+            import mujoco.viewer
+            self._viewer = mujoco.viewer.launch_passive(self.model, self.data)
+        except Exception as error:  # GLFW and the viewer fail with many error types.
+            raise ViewerUnavailableError(
+                f"MuJoCo's viewer failed to open ({str(error).rstrip('.')}).") from error
+        with self._viewer.lock():
+            # Follow the robot from behind and above; the user can still orbit and zoom.
+            camera = self._viewer.cam
+            camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+            camera.trackbodyid = self._robot_body
+            camera.distance = VIEWER_DISTANCE_M
+            camera.elevation = VIEWER_ELEVATION_DEG
+            # The azimuth is the direction the camera looks: along the robot's heading.
+            camera.azimuth = math.degrees(self.robot_pose()[2])
+        self._last_viewer_sync_s = -math.inf
+
+    def sync_viewer(self) -> bool:
+        """
+        Show the current state in the viewer, at most ~60 times per wall-clock second.
+
+        Cheap when the viewer is closed: call it after every step.
+
+        :return: whether the viewer is open (False once its window was closed).
+        """
+        if self._viewer is None:
+            return False
+        if not self._viewer.is_running():
+            self._viewer.close()
+            self._viewer = None
+            return False
+        now_s = time.monotonic()
+        if now_s - self._last_viewer_sync_s >= VIEWER_SYNC_PERIOD_S:
+            self._viewer.sync()
+            self._last_viewer_sync_s = now_s
+        return True
+
     def close(self) -> None:
-        """Release the renderers' OpenGL resources (on the thread that rendered)."""
+        """Close the viewer and release the renderers' OpenGL resources (on the render thread)."""
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
         for renderer in (self._renderer, self._overview_renderer):
             if renderer is not None:
                 renderer.close()
