@@ -239,6 +239,18 @@ def array_to_image(image, encoding, msg=None):
     msg.encoding = encoding
     msg.is_bigendian = HOST_IS_BIG_ENDIAN
     msg.step = int(width) * channels_of(encoding) * image.itemsize
+    return fill_message_data(msg, image)
+
+
+def fill_message_data(msg, values):
+    """
+    Copy an array's bytes into a message's ``uint8[] data`` (an Image's, a PointCloud2's).
+
+    :param msg: the message; its data is overwritten in place when it already has the
+        array's length in bytes, else replaced.
+    :param values: the array, any element type and memory layout.
+    :return: ``msg``.
+    """
     # Measured for 640x480x3 on this machine (median, rclpy 7.1.6 message classes):
     # copying into the message's existing array.array('B') in place 26 us (no allocation);
     # array.array.frombytes(ndarray) 43 us, but up to 0.9 ms when each message is dropped
@@ -249,10 +261,10 @@ def array_to_image(image, encoding, msg=None):
     # temporary.
     existing = msg.data
     if (isinstance(existing, array.array) and existing.typecode == 'B'
-            and len(existing) == image.nbytes):
-        np.frombuffer(existing, dtype=image.dtype).reshape(image.shape)[...] = image
+            and len(existing) == values.nbytes):
+        np.frombuffer(existing, dtype=values.dtype).reshape(values.shape)[...] = values
         return msg
     data = array.array('B')
-    data.frombytes(np.ascontiguousarray(image).reshape(-1).view(np.uint8))
+    data.frombytes(np.ascontiguousarray(values).reshape(-1).view(np.uint8))
     msg.data = data
     return msg

@@ -1,11 +1,15 @@
 """
-The simulator node: the MuJoCo follow-bot world wired to ROS 2 topics.
+The simulator node: the MuJoCo follow-bot world wired to ROS 2 topics, services and time.
 
-Publishes the Kinect-style RGB camera, ``/clock`` and a ground-truth score on ``/diagnostics``;
-obeys ``cmd_vel``. All physics, rendering and scoring live in :mod:`followbot_sim.world` and
-:mod:`followbot_sim.course`; this node only turns them into parameters, topics and a timer.
+Publishes the Kinect-style camera (RGB, depth, point cloud and their camera_info), wheel odometry,
+joint states, the robot's transforms, ``/clock`` and a ground-truth score; obeys ``cmd_vel``;
+serves pause, step and reset. Physics, rendering, odometry and scoring live in the pure modules
+(:mod:`followbot_sim.world`, :mod:`followbot_sim.course`, :mod:`followbot_sim.odometry`);
+messages are built in :mod:`followbot_sim.messages`. This node only turns them into parameters,
+topics, services and a timer.
 """
 
+import dataclasses
 import math
 import time
 
@@ -15,67 +19,121 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from followbot.image_conversion import array_to_image
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec
-from followbot_sim.course import COURSES, LapTracker, make_course
+from followbot_sim import frames
+from followbot_sim import messages
+from followbot_sim.course import LapTracker
+from followbot_sim.course_file import load_course
+from followbot_sim.depth import depth_to_points
 from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits,
                                       KOBUKI_COMMAND_TIMEOUT_S,
                                       KOBUKI_MAX_ANGULAR_SPEED_RADPS,
                                       KOBUKI_MAX_LINEAR_SPEED_MPS, TIME_EPSILON_S)
+from followbot_sim.odometry import WheelOdometry
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
-                                 FollowbotWorld, RenderingUnavailableError)
-from geometry_msgs.msg import Twist
+                                 FollowbotWorld, LEFT_WHEEL_JOINT, RenderingUnavailableError,
+                                 RIGHT_WHEEL_JOINT, ViewerUnavailableError)
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
 from std_msgs.msg import Header
+from std_srvs.srv import SetBool, Trigger
 
-CAMERA_FRAME = 'camera_rgb_optical_frame'
-WORLD_FRAME = 'world'
+try:
+    from tf2_msgs.msg import TFMessage
+except ImportError:  # tf2_msgs is not on PyPI; a sourced ROS 2 install has it.
+    TFMessage = None
+
 SCORE_STATUS_NAME = 'followbot_sim: course score'
+IMAGE_ENCODINGS = ('bgr8', 'rgb8')
 SIMULATOR_PARAMETERS = {
     'course': ParameterSpec(
-        'book_loop', 'Built-in course to load: ' + ', '.join(sorted(COURSES)) + '.',
-        read_only=True),
+        'book_loop', 'Course to load: a built-in name (see the README) or the path of a YAML '
+        'course file.', read_only=True),
+    'lighting_zones': ParameterSpec(
+        False, 'Add bright and dim zones along the line of the course.', read_only=True),
+    'camera_noise_stddev_levels': ParameterSpec(
+        0.0, 'Standard deviation of Gaussian noise added to every RGB pixel, in 8-bit '
+        'intensity levels; 0 for a clean camera.', 0.0, 64.0, read_only=True),
+    'random_seed': ParameterSpec(
+        0, 'Seed of the camera noise: the same seed and inputs give the same run.', 0,
+        2 ** 31 - 1, read_only=True),
     'real_time_factor': ParameterSpec(
         1.0, 'Simulated seconds per wall second; 0 runs as fast as possible.', 0.0, 100.0),
-    'camera_rate_hz': ParameterSpec(20.0, 'Camera frames per simulated second.', 1.0, 60.0),
+    'start_paused': ParameterSpec(
+        False, 'Start paused: time advances only through the step service until unpaused.',
+        read_only=True),
+    'step_physics_steps': ParameterSpec(
+        1, 'Physics steps (2 ms each) that one call of the step service advances.', 1,
+        1_000_000),
+    'camera_rate_hz': ParameterSpec(
+        20.0, 'Camera frames (RGB and depth) per simulated second.', 1.0, 60.0, read_only=True),
     'clock_rate_hz': ParameterSpec(
-        100.0, 'Rate of /clock and of cmd_vel sampling, per simulated second.', 20.0, 1000.0),
+        100.0, 'Rate of /clock and of the ground-truth score updates, per simulated second.',
+        20.0, 500.0, read_only=True),
+    'odom_rate_hz': ParameterSpec(
+        50.0, 'Rate of odom, joint_states, ground_truth/odom and /tf, per simulated second.',
+        1.0, 500.0, read_only=True),
     'image_width_px': ParameterSpec(640, 'Camera image width.', 16, 1280, read_only=True),
     'image_height_px': ParameterSpec(480, 'Camera image height.', 16, 1280, read_only=True),
+    'image_encoding': ParameterSpec(
+        'bgr8', "Encoding of camera/rgb/image_raw: bgr8 (as the book's Gazebo Kinect) or "
+        'rgb8.', read_only=True),
+    'rgb_enabled': ParameterSpec(
+        True, 'Publish camera/rgb/image_raw and camera/rgb/camera_info.', read_only=True),
+    'depth_enabled': ParameterSpec(
+        True, 'Publish camera/depth/image_raw and camera/depth/camera_info.', read_only=True),
+    'point_cloud_enabled': ParameterSpec(
+        True, 'Publish camera/depth/points.', read_only=True),
     'horizontal_fov_deg': ParameterSpec(
         DEFAULT_HORIZONTAL_FOV_DEG, 'Camera horizontal field of view (Kinect: 60).', 10.0,
         150.0, read_only=True),
     'camera_pitch_deg': ParameterSpec(
-        DEFAULT_CAMERA_PITCH_DEG, 'Downward tilt of the camera from level (the book: 0).',
+        DEFAULT_CAMERA_PITCH_DEG, 'Downward tilt of the Kinect from level (the book: 0).',
         -30.0, 80.0, read_only=True),
     'command_timeout_s': ParameterSpec(
         KOBUKI_COMMAND_TIMEOUT_S, 'Wheels stop when no cmd_vel came for this long (simulated '
-        'time).', 0.05, 10.0),
+        'time).', 0.05, 10.0, read_only=True),
+    'cmd_vel_stamped': ParameterSpec(
+        False, 'Take cmd_vel as geometry_msgs/TwistStamped instead of Twist.', read_only=True),
     'max_linear_speed_mps': ParameterSpec(
         KOBUKI_MAX_LINEAR_SPEED_MPS, 'Kobuki top speed; faster commands are limited.', 0.01,
         2.0, read_only=True),
     'max_angular_speed_radps': ParameterSpec(
         KOBUKI_MAX_ANGULAR_SPEED_RADPS, 'Kobuki top yaw rate; faster commands are limited.',
         0.01, 10.0, read_only=True),
+    'publish_tf': ParameterSpec(
+        True, "Publish odom -> base_footprint on /tf and the robot's fixed frames on "
+        '/tf_static (needs tf2_msgs).', read_only=True),
     'score_period_s': ParameterSpec(
-        1.0, 'Period of the ground-truth score on /diagnostics (simulated time).', 0.05, 60.0),
+        1.0, 'Period of the ground-truth score on /diagnostics (simulated time).', 0.05, 60.0,
+        read_only=True),
     'overview_period_s': ParameterSpec(
         1.0, 'Period of the top-down overview image, rendered only while someone subscribes '
-        '(simulated time).', 0.05, 60.0),
+        '(simulated time).', 0.05, 60.0, read_only=True),
     'overview_size_px': ParameterSpec(800, 'Side of the overview image.', 64, 1280),
     'run_duration_s': ParameterSpec(
         0.0, 'Stop the simulator after this much simulated time; 0 runs on.', 0.0, 1e6),
+    'viewer': ParameterSpec(
+        False, "Open MuJoCo's interactive viewer (needs a display).", read_only=True),
 }
 # Longest a timer callback may spend catching up with the wall clock before it lets the
-# executor serve cmd_vel again.
+# executor serve cmd_vel and services again.
 MAX_CATCH_UP_WALL_S = 0.1
 # Fall this far behind the requested real-time factor and the pacing restarts from now
 # instead of fast-forwarding through the backlog.
 MAX_PACING_LAG_S = 0.5
 TRAIL_SPACING_M = 0.01
+# How often the node looks for cmd_vel publishers of the other message type (wall time).
+CMD_VEL_TYPE_CHECK_PERIOD_S = 2.0
+TWIST_TYPES = {False: 'geometry_msgs/msg/Twist', True: 'geometry_msgs/msg/TwistStamped'}
+WHEEL_JOINTS = (LEFT_WHEEL_JOINT, RIGHT_WHEEL_JOINT)
+# Static transforms are latched: late subscribers (RViz, tf2 listeners) still get them.
+TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def _reached(time_s: float, target_s: float) -> bool:
@@ -83,9 +141,23 @@ def _reached(time_s: float, target_s: float) -> bool:
     return time_s + TIME_EPSILON_S >= target_s
 
 
-def _stamp(time_s: float) -> Time:
-    nanoseconds = round(time_s * 1e9)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+@dataclasses.dataclass
+class _Periodic:
+    """Something the simulator does every ``period_s`` of simulated time."""
+
+    period_s: float
+    action: object
+    next_s: float = None
+
+    def __post_init__(self):
+        if self.next_s is None:
+            self.next_s = self.period_s
+
+    def run_if_due(self, time_s: float, stamp: Time) -> None:
+        """Run the action, stamped, when its time has come."""
+        if _reached(time_s, self.next_s):
+            self.next_s += self.period_s
+            self.action(stamp)
 
 
 class SimulatorNode(Node):
@@ -93,70 +165,155 @@ class SimulatorNode(Node):
 
     def __init__(self, **kwargs):
         """
-        Declare the parameters, build the world and start the simulation timer.
+        Declare the parameters, build the world, the publishers and services, and start.
 
         :param kwargs: forwarded to :class:`rclpy.node.Node` (``context``,
             ``parameter_overrides``, ...).
+        :raises ValueError: for a parameter value the simulator cannot use (unknown course,
+            unreadable course file, unknown image encoding).
         """
         super().__init__('followbot_sim', **kwargs)
         parameters = declare_parameters(self, SIMULATOR_PARAMETERS)
         self._real_time_factor = parameters['real_time_factor']
-        self._score_period_s = parameters['score_period_s']
-        self._overview_period_s = parameters['overview_period_s']
         self._overview_size_px = parameters['overview_size_px']
         self._run_duration_s = parameters['run_duration_s']
+        self._image_encoding = parameters['image_encoding']
+        if self._image_encoding not in IMAGE_ENCODINGS:
+            raise ValueError(f'image_encoding must be one of {", ".join(IMAGE_ENCODINGS)}, '
+                             f'got {self._image_encoding!r}.')
         camera_rate_hz = parameters['camera_rate_hz']
-        image_width_px = parameters['image_width_px']
-        image_height_px = parameters['image_height_px']
 
-        course = make_course(parameters['course'])
+        course = load_course(parameters['course'], lighting=parameters['lighting_zones'])
         limits = DiffDriveLimits(
             max_linear_speed_mps=parameters['max_linear_speed_mps'],
             max_angular_speed_radps=parameters['max_angular_speed_radps'])
         self._world = FollowbotWorld(
-            course, image_width_px, image_height_px, parameters['horizontal_fov_deg'],
-            parameters['camera_pitch_deg'], limits=limits)
+            course, parameters['image_width_px'], parameters['image_height_px'],
+            parameters['horizontal_fov_deg'], parameters['camera_pitch_deg'], limits=limits,
+            camera_noise_stddev=parameters['camera_noise_stddev_levels'],
+            noise_seed=parameters['random_seed'])
         self._watchdog = CommandWatchdog(parameters['command_timeout_s'])
         self._lap_tracker = LapTracker(course)
+        self._odometry = WheelOdometry(limits.wheel_radius_m, limits.wheel_separation_m)
+        self._odometry.update(*self._world.wheel_angles(), self._world.time_s)
         self._trail_xy = []
-        self._tick_s = 1.0 / parameters['clock_rate_hz']
-        self._frame_period_s = 1.0 / camera_rate_hz
-        self._next_frame_s = self._frame_period_s
-        self._next_score_s = self._score_period_s
-        self._next_overview_s = 0.0
         self._laps_reported = 0
+        self._commands_received = 0
+        self._last_score_stamp = None
         self._finished = False
-        self._bgr_frame = np.empty((image_height_px, image_width_px, 3), np.uint8)
-        self._image_msg = Image()
-        self._image_msg.header.frame_id = CAMERA_FRAME
-        self._camera_info_msg = self._make_camera_info()
+        self._paused = parameters['start_paused']
         # Render once now: a machine that cannot render says so at start-up, and the GL
         # context is made on this thread, the one that spins the node.
         self._world.render_camera()
+        self._open_viewer(parameters['viewer'])
 
-        # REP-2003: sensor publishers are reliable; subscribers pick best effort if they like.
-        self._image_publisher = self.create_publisher(Image, 'camera/rgb/image_raw', 10)
-        self._camera_info_publisher = self.create_publisher(
-            CameraInfo, 'camera/rgb/camera_info', 10)
-        self._clock_publisher = self.create_publisher(ClockMsg, '/clock', QoSProfile(depth=10))
-        self._diagnostics_publisher = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self._overview_publisher = self.create_publisher(Image, 'overview/image', 1)
-        self._cmd_vel_subscription = self.create_subscription(
-            Twist, 'cmd_vel', self.cmd_vel_callback, 10)
+        self._make_publishers(parameters)
+        self._make_cmd_vel_subscription(parameters['cmd_vel_stamped'])
+        self._pause_service = self.create_service(SetBool, '~/pause', self.pause_callback)
+        self._step_service = self.create_service(Trigger, '~/step', self.step_callback)
+        self._reset_service = self.create_service(Trigger, '~/reset', self.reset_callback)
+
+        tick_s = 1.0 / parameters['clock_rate_hz']
+        self._schedule = [
+            # /clock first: a subscriber on simulated time then knows the time of what follows.
+            _Periodic(tick_s, self._publish_clock),
+            _Periodic(1.0 / parameters['odom_rate_hz'], self._publish_robot_state),
+            _Periodic(1.0 / camera_rate_hz, self._publish_cameras),
+            _Periodic(parameters['overview_period_s'], self._publish_overview, next_s=0.0),
+            _Periodic(parameters['score_period_s'], self._publish_score),
+        ]
+        self._tick_s = tick_s
 
         # Pacing runs on the wall clock: this node is the source of simulated time.
         self._wall_clock = Clock(clock_type=ClockType.STEADY_TIME)
         timer_period_s = 0.0 if self._real_time_factor == 0.0 else (
-            self._tick_s / self._real_time_factor)
+            tick_s / self._real_time_factor)
         self._pacing_origin = None
         self._timer = self.create_timer(timer_period_s, self.timer_callback,
                                         clock=self._wall_clock)
+        self._cmd_vel_type_timer = self.create_timer(
+            CMD_VEL_TYPE_CHECK_PERIOD_S, self.cmd_vel_type_check_callback,
+            clock=self._wall_clock)
+        self._wrong_cmd_vel_types_reported = set()
+
         width_px, height_px = self._world.image_size_px
         pace = (f'real-time factor {self._real_time_factor:g}' if self._real_time_factor
                 else 'as fast as possible')
         self.get_logger().info(
             f"Simulating course '{course.name}' ({course.length_m:.1f} m) with a "
-            f'{width_px}x{height_px} camera at {camera_rate_hz:g} Hz, {pace}.')
+            f'{width_px}x{height_px} camera at {camera_rate_hz:g} Hz, {pace}'
+            f"{', paused' if self._paused else ''}.")
+
+    def _open_viewer(self, wanted: bool) -> None:
+        if not wanted:
+            return
+        try:
+            self._world.open_viewer()
+        except ViewerUnavailableError as error:
+            self.get_logger().warn(f'{error} Running without the viewer.')
+
+    def _make_publishers(self, parameters: dict) -> None:
+        # REP-2003: sensor publishers are reliable; subscribers pick best effort if they like.
+        intrinsics = self._world.camera_intrinsics()
+        size_px = self._world.image_size_px
+        self._image_publisher = self._camera_info_publisher = None
+        self._depth_publisher = self._depth_info_publisher = self._points_publisher = None
+        if parameters['rgb_enabled']:
+            self._image_publisher = self.create_publisher(Image, 'camera/rgb/image_raw', 10)
+            self._camera_info_publisher = self.create_publisher(
+                CameraInfo, 'camera/rgb/camera_info', 10)
+        if parameters['depth_enabled']:
+            self._depth_publisher = self.create_publisher(Image, 'camera/depth/image_raw', 10)
+            self._depth_info_publisher = self.create_publisher(
+                CameraInfo, 'camera/depth/camera_info', 10)
+        if parameters['point_cloud_enabled']:
+            self._points_publisher = self.create_publisher(
+                PointCloud2, 'camera/depth/points', 10)
+        self._image_msg = Image(header=Header(frame_id=frames.CAMERA_RGB_OPTICAL_FRAME))
+        self._depth_msg = Image(header=Header(frame_id=frames.CAMERA_DEPTH_OPTICAL_FRAME))
+        self._points_msg = PointCloud2(header=Header(frame_id=frames.CAMERA_DEPTH_OPTICAL_FRAME))
+        self._rgb_info_msg = messages.camera_info(
+            intrinsics, size_px, frames.CAMERA_RGB_OPTICAL_FRAME)
+        self._depth_info_msg = messages.camera_info(
+            intrinsics, size_px, frames.CAMERA_DEPTH_OPTICAL_FRAME)
+        width_px, height_px = size_px
+        self._bgr_frame = np.empty((height_px, width_px, 3), np.uint8)
+        self._points_xyz = np.empty((height_px, width_px, 3), np.float32)
+
+        self._clock_publisher = self.create_publisher(ClockMsg, '/clock', QoSProfile(depth=10))
+        self._odom_publisher = self.create_publisher(Odometry, 'odom', 10)
+        self._ground_truth_publisher = self.create_publisher(Odometry, 'ground_truth/odom', 10)
+        self._joint_state_publisher = self.create_publisher(JointState, 'joint_states', 10)
+        self._odom_msg = Odometry(header=Header(frame_id=frames.ODOM_FRAME),
+                                  child_frame_id=frames.BASE_FOOTPRINT_FRAME)
+        self._ground_truth_msg = Odometry(header=Header(frame_id=frames.WORLD_FRAME),
+                                          child_frame_id=frames.BASE_FOOTPRINT_FRAME)
+        self._diagnostics_publisher = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._overview_publisher = self.create_publisher(Image, 'overview/image', 1)
+        self._tf_publisher = None
+        if not parameters['publish_tf']:
+            return
+        if TFMessage is None:
+            self.get_logger().warn(
+                'tf2_msgs is not importable (it is not on PyPI), so /tf and /tf_static are not '
+                'published; source a ROS 2 Jazzy install to get them. odom, joint_states and '
+                'the camera topics are unaffected.')
+            return
+        self._tf_publisher = self.create_publisher(TFMessage, '/tf', 100)
+        self._tf_static_publisher = self.create_publisher(TFMessage, '/tf_static', TF_STATIC_QOS)
+        now = messages.stamp(self._world.time_s)
+        self._tf_static_publisher.publish(TFMessage(transforms=[
+            messages.static_transform(transform, now)
+            for transform in self._world.sensor_frames()]))
+
+    def _make_cmd_vel_subscription(self, stamped: bool) -> None:
+        self._cmd_vel_stamped = stamped
+        if stamped:
+            self._cmd_vel_subscription = self.create_subscription(
+                TwistStamped, 'cmd_vel', self.cmd_vel_stamped_callback, 10)
+        else:
+            self._cmd_vel_subscription = self.create_subscription(
+                Twist, 'cmd_vel', self.cmd_vel_callback, 10)
 
     @property
     def world(self) -> FollowbotWorld:
@@ -169,23 +326,24 @@ class SimulatorNode(Node):
         return self._lap_tracker
 
     @property
+    def odometry(self) -> WheelOdometry:
+        """Return the wheel odometry the node publishes on ``odom``."""
+        return self._odometry
+
+    @property
     def finished(self) -> bool:
         """Return whether ``run_duration_s`` of simulated time has passed."""
         return self._finished
 
-    def _make_camera_info(self) -> CameraInfo:
-        fx_px, fy_px, cx_px, cy_px = self._world.camera_intrinsics()
-        width_px, height_px = self._world.image_size_px
-        info = CameraInfo()
-        info.header.frame_id = CAMERA_FRAME
-        info.width = width_px
-        info.height = height_px
-        info.distortion_model = 'plumb_bob'
-        info.d = [0.0] * 5
-        info.k = [fx_px, 0.0, cx_px, 0.0, fy_px, cy_px, 0.0, 0.0, 1.0]
-        info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-        info.p = [fx_px, 0.0, cx_px, 0.0, 0.0, fy_px, cy_px, 0.0, 0.0, 0.0, 1.0, 0.0]
-        return info
+    @property
+    def commands_received(self) -> int:
+        """Return how many valid velocity commands have arrived on cmd_vel."""
+        return self._commands_received
+
+    @property
+    def paused(self) -> bool:
+        """Return whether time stands still until a step or an unpause."""
+        return self._paused
 
     def cmd_vel_callback(self, msg: Twist) -> None:
         """Take a velocity command; a non-finite one is refused and the robot keeps its last."""
@@ -196,17 +354,82 @@ class SimulatorNode(Node):
                 f'angular.z={angular_radps}).', throttle_duration_sec=5.0)
             return
         self._watchdog.command(linear_mps, angular_radps, self._world.time_s)
+        self._commands_received += 1
+
+    def cmd_vel_stamped_callback(self, msg: TwistStamped) -> None:
+        """Take a stamped velocity command; its stamp is not used (arrival time counts)."""
+        self.cmd_vel_callback(msg.twist)
+
+    def cmd_vel_type_check_callback(self) -> None:
+        """Warn once per type when cmd_vel has publishers this node cannot hear."""
+        expected = TWIST_TYPES[self._cmd_vel_stamped]
+        topic = self._cmd_vel_subscription.topic_name
+        for info in self.get_publishers_info_by_topic(topic):
+            if info.topic_type == expected or info.topic_type in (
+                    self._wrong_cmd_vel_types_reported):
+                continue
+            self._wrong_cmd_vel_types_reported.add(info.topic_type)
+            stamped = info.topic_type == TWIST_TYPES[True]
+            self.get_logger().error(
+                f'{info.node_namespace.rstrip("/")}/{info.node_name} publishes {topic} as '
+                f'{info.topic_type}, but this simulator takes {expected}: those commands never '
+                f'arrive. Restart with -p cmd_vel_stamped:={str(stamped).lower()} or change '
+                'the publisher.')
+
+    def pause_callback(self, request: SetBool.Request, response: SetBool.Response):
+        """Pause (``data: true``) or resume (``data: false``) simulated time."""
+        self._paused = bool(request.data)
+        self._pacing_origin = None
+        response.success = True
+        response.message = (f'Paused at {self._world.time_s:.3f} s.' if self._paused
+                            else f'Running from {self._world.time_s:.3f} s.')
+        return response
+
+    def step_callback(self, request: Trigger.Request, response: Trigger.Response):
+        """Advance a paused simulation by ``step_physics_steps`` physics steps."""
+        if not self._paused:
+            response.success = False
+            response.message = 'Not paused: call pause with data: true before stepping.'
+            return response
+        if self._finished:
+            response.success = False
+            response.message = f'The run ended at run_duration_s = {self._run_duration_s:g} s.'
+            return response
+        steps = self.get_parameter('step_physics_steps').value
+        for _ in range(steps):
+            self._physics_step()
+            if self._finished:
+                break
+        response.success = True
+        response.message = f'Stepped to {self._world.time_s:.3f} s.'
+        return response
+
+    def reset_callback(self, request: Trigger.Request, response: Trigger.Response):
+        """Put the robot back at the course start, at rest, and start the score afresh."""
+        self._world.reset_robot()
+        self._watchdog.reset()
+        self._lap_tracker.reset()
+        self._odometry.reset()
+        self._odometry.update(*self._world.wheel_angles(), self._world.time_s)
+        self._trail_xy.clear()
+        self._laps_reported = 0
+        self._finished = False
+        response.success = True
+        response.message = (f'Robot back at the start of {self._world.course.name} at '
+                            f'{self._world.time_s:.3f} s; score, odometry and trail restarted.')
+        self.get_logger().info(response.message)
+        return response
 
     def timer_callback(self) -> None:
-        """Advance the simulation: one tick, or as many as the real-time factor asks for."""
-        if self._finished:
+        """Advance the simulation as far as the real-time factor asks for."""
+        if self._finished or self._paused:
             return
         if self._real_time_factor == 0.0:
-            self._tick()
+            self._advance_to(self._world.time_s + self._tick_s)
             return
         if self._pacing_origin is None:
             # Pace from the end of the first tick: it includes the renderer's start-up.
-            self._tick()
+            self._advance_to(self._world.time_s + self._tick_s)
             self._pacing_origin = (time.monotonic(), self._world.time_s)
             return
         now_s = time.monotonic()
@@ -218,42 +441,43 @@ class SimulatorNode(Node):
                 'simulated time falls behind.', throttle_duration_sec=10.0)
             self._pacing_origin = (now_s, self._world.time_s)
             target_sim_s = self._world.time_s + self._tick_s
-        deadline_s = now_s + MAX_CATCH_UP_WALL_S
-        while (self._world.time_s + self._tick_s / 2.0 < target_sim_s and not self._finished
-               and time.monotonic() < deadline_s):
-            self._tick()
+        self._advance_to(target_sim_s, deadline_s=now_s + MAX_CATCH_UP_WALL_S)
 
-    def _tick(self) -> None:
+    def _advance_to(self, target_s: float, deadline_s: float = math.inf) -> None:
+        half_step_s = self._world.timestep_s / 2.0
+        while (self._world.time_s + half_step_s < target_s and not self._finished
+               and time.monotonic() < deadline_s):
+            self._physics_step()
+
+    def _physics_step(self) -> None:
         world = self._world
         world.set_twist(*self._watchdog.current(world.time_s))
-        world.step(self._tick_s)
+        world.step(world.timestep_s)
+        world.sync_viewer()
         time_s = world.time_s
-        x_m, y_m, _ = world.robot_pose()
-        self._lap_tracker.update(x_m, y_m, time_s)
-        self._record_trail(x_m, y_m)
-        stamp = _stamp(time_s)
-        self._clock_publisher.publish(ClockMsg(clock=stamp))
-        if _reached(time_s, self._next_frame_s):
-            self._next_frame_s += self._frame_period_s
-            self._publish_camera(stamp)
-        if _reached(time_s, self._next_overview_s):
-            self._next_overview_s += self._overview_period_s
-            if self._overview_publisher.get_subscription_count() > 0:
-                self._publish_overview(stamp)
+        stamp = messages.stamp(time_s)
+        for periodic in self._schedule:
+            periodic.run_if_due(time_s, stamp)
         self._report_laps()
-        score_due = _reached(time_s, self._next_score_s)
-        if score_due:
-            self._next_score_s += self._score_period_s
-        finishing = self._run_duration_s > 0.0 and _reached(time_s, self._run_duration_s)
-        if score_due or finishing:
+        if self._run_duration_s > 0.0 and _reached(time_s, self._run_duration_s):
+            self._finish(stamp)
+
+    def _finish(self, stamp: Time) -> None:
+        self._finished = True
+        if self._last_score_stamp != stamp:
             self._publish_score(stamp)
-        if finishing:
-            self._finished = True
-            summary = self._lap_tracker.summary()
-            self.get_logger().info(
-                f"Run of {time_s:.1f} s simulated time done: {summary['laps_completed']} laps, "
-                f"cross-track RMS {100 * summary['rms_distance_from_line_m']:.1f} cm, "
-                f"max {100 * summary['max_distance_from_line_m']:.1f} cm.")
+        summary = self._lap_tracker.summary()
+        self.get_logger().info(
+            f'Run of {self._world.time_s:.1f} s simulated time done: '
+            f"{summary['laps_completed']} laps, cross-track RMS "
+            f"{100 * summary['rms_distance_from_line_m']:.1f} cm, "
+            f"max {100 * summary['max_distance_from_line_m']:.1f} cm.")
+
+    def _publish_clock(self, stamp: Time) -> None:
+        self._clock_publisher.publish(ClockMsg(clock=stamp))
+        x_m, y_m, _ = self._world.robot_pose()
+        self._lap_tracker.update(x_m, y_m, self._world.time_s)
+        self._record_trail(x_m, y_m)
 
     def _record_trail(self, x_m: float, y_m: float) -> None:
         # Every tick would store 100 points a second for as long as the run lasts; a point a
@@ -264,16 +488,61 @@ class SimulatorNode(Node):
                 return
         self._trail_xy.append((x_m, y_m))
 
-    def _publish_camera(self, stamp: Time) -> None:
+    def _publish_robot_state(self, stamp: Time) -> None:
+        world = self._world
+        wheel_angles_rad = world.wheel_angles()
+        self._odometry.update(*wheel_angles_rad, world.time_s)
+        self._odom_msg.header.stamp = stamp
+        self._odom_publisher.publish(messages.fill_odometry(
+            self._odom_msg, self._odometry.pose, self._odometry.twist))
+        self._ground_truth_msg.header.stamp = stamp
+        self._ground_truth_publisher.publish(messages.fill_odometry(
+            self._ground_truth_msg, world.robot_pose(), world.robot_twist(), exact=True))
+        self._joint_state_publisher.publish(messages.joint_state(
+            WHEEL_JOINTS, wheel_angles_rad, world.wheel_speeds(), stamp))
+        if self._tf_publisher is not None:
+            self._tf_publisher.publish(TFMessage(transforms=[messages.planar_transform(
+                frames.ODOM_FRAME, frames.BASE_FOOTPRINT_FRAME, self._odometry.pose, stamp)]))
+
+    def _publish_cameras(self, stamp: Time) -> None:
+        if self._image_publisher is not None:
+            if self._image_publisher.get_subscription_count() > 0:
+                self._publish_rgb(stamp)
+            self._rgb_info_msg.header.stamp = stamp
+            self._camera_info_publisher.publish(self._rgb_info_msg)
+        depth_wanted = (self._depth_publisher is not None
+                        and self._depth_publisher.get_subscription_count() > 0)
+        points_wanted = (self._points_publisher is not None
+                         and self._points_publisher.get_subscription_count() > 0)
+        if depth_wanted or points_wanted:
+            self._publish_depth(stamp, depth_wanted, points_wanted)
+        if self._depth_info_publisher is not None:
+            self._depth_info_msg.header.stamp = stamp
+            self._depth_info_publisher.publish(self._depth_info_msg)
+
+    def _publish_rgb(self, stamp: Time) -> None:
         rgb = self._world.render_camera()
-        cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR, dst=self._bgr_frame)
-        msg = array_to_image(self._bgr_frame, 'bgr8', self._image_msg)
+        if self._image_encoding == 'bgr8':
+            rgb = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR, dst=self._bgr_frame)
+        msg = array_to_image(rgb, self._image_encoding, self._image_msg)
         msg.header.stamp = stamp
-        self._camera_info_msg.header.stamp = stamp
         self._image_publisher.publish(msg)
-        self._camera_info_publisher.publish(self._camera_info_msg)
+
+    def _publish_depth(self, stamp: Time, depth_wanted: bool, points_wanted: bool) -> None:
+        depth_m = self._world.render_depth()
+        if depth_wanted:
+            msg = array_to_image(depth_m, '32FC1', self._depth_msg)
+            msg.header.stamp = stamp
+            self._depth_publisher.publish(msg)
+        if points_wanted:
+            depth_to_points(depth_m, *self._world.camera_intrinsics(), out=self._points_xyz)
+            msg = messages.fill_point_cloud(self._points_xyz, self._points_msg)
+            msg.header.stamp = stamp
+            self._points_publisher.publish(msg)
 
     def _publish_overview(self, stamp: Time) -> None:
+        if self._overview_publisher.get_subscription_count() == 0:
+            return
         size_px = self._overview_size_px
         rgb = self._world.render_overview(size_px)
         bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
@@ -283,7 +552,7 @@ class SimulatorNode(Node):
                           color=(0, 0, 255), thickness=2, lineType=cv2.LINE_AA)
         msg = array_to_image(bgr, 'bgr8')
         msg.header.stamp = stamp
-        msg.header.frame_id = WORLD_FRAME
+        msg.header.frame_id = frames.WORLD_FRAME
         self._overview_publisher.publish(msg)
 
     def _report_laps(self) -> None:
@@ -295,6 +564,7 @@ class SimulatorNode(Node):
                 f'{lap_times_s[self._laps_reported - 1]:.1f} s (simulated time).')
 
     def _publish_score(self, stamp: Time) -> None:
+        self._last_score_stamp = stamp
         summary = self._lap_tracker.summary()
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK, name=SCORE_STATUS_NAME, hardware_id='followbot_sim',
@@ -302,10 +572,10 @@ class SimulatorNode(Node):
                     f'{100 * self._lap_tracker.distance_from_line_m:.1f} cm from the line')
         status.values = [KeyValue(key=key, value=str(value)) for key, value in summary.items()]
         self._diagnostics_publisher.publish(DiagnosticArray(
-            header=Header(stamp=stamp, frame_id=WORLD_FRAME), status=[status]))
+            header=Header(stamp=stamp, frame_id=frames.WORLD_FRAME), status=[status]))
 
     def destroy_node(self):
-        """Release the renderer's OpenGL context, then the node."""
+        """Release the renderer's OpenGL context and the viewer, then the node."""
         self._world.close()
         return super().destroy_node()
 

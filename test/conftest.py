@@ -3,12 +3,16 @@
 import os
 import time
 
+from geometry_msgs.msg import Twist
 import pytest
 from rcl_interfaces.msg import Log
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_srvs.srv import SetBool, Trigger
 
 # Keep DDS traffic on this machine and apart from other test runs and other ROS users: each
 # pytest process gets its own domain, derived from its process id.
@@ -16,6 +20,7 @@ FIRST_TEST_DOMAIN_ID = 120
 TEST_DOMAIN_COUNT = 90
 WAIT_S = 30.0
 SPIN_S = 0.05
+ROSOUT_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def run_domain_id() -> int:
@@ -76,15 +81,27 @@ class NodeHarness:
         """
         self.node = node
         self.client = Node(client_name, context=context)
-        self.errors = []
-        self.client.create_subscription(Log, '/rosout', self._log_callback, 100)
+        self.logs = []
+        # /rosout keeps a history for late joiners (transient local), so the node's start-up
+        # messages, logged before this client existed, arrive too.
+        self.client.create_subscription(Log, '/rosout', self._log_callback, ROSOUT_QOS)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(node)
         self.executor.add_node(self.client)
 
     def _log_callback(self, msg: Log) -> None:
-        if msg.name == self.node.get_name() and msg.level >= Log.ERROR:
-            self.errors.append(msg.msg)
+        if msg.name == self.node.get_name():
+            self.logs.append(msg)
+
+    @property
+    def errors(self) -> list:
+        """Return the texts of the node's error and fatal log messages so far."""
+        return [msg.msg for msg in self.logs if msg.level >= Log.ERROR]
+
+    @property
+    def warnings(self) -> list:
+        """Return the texts of the node's warnings so far."""
+        return [msg.msg for msg in self.logs if msg.level == Log.WARN]
 
     def spin_until(self, condition, timeout_s: float = WAIT_S) -> None:
         """Spin until ``condition()`` holds; fail the test if it does not in time."""
@@ -95,3 +112,74 @@ class NodeHarness:
         self.executor.shutdown()
         self.node.destroy_node()
         self.client.destroy_node()
+
+
+class SimHarness(NodeHarness):
+    """A simulator running as fast as possible and a client that commands it."""
+
+    def __init__(self, context, *overrides, command_type=Twist):
+        """
+        Start the simulator with ``real_time_factor`` 0 and any parameter overrides.
+
+        :param context: the rclpy Context of both nodes.
+        :param overrides: rclpy Parameters for the simulator.
+        :param command_type: Twist or TwistStamped, the type the client sends on cmd_vel.
+        """
+        from followbot_sim.sim_node import SimulatorNode
+        super().__init__(context, SimulatorNode(context=context, parameter_overrides=[
+            Parameter('real_time_factor', value=0.0), *overrides]), 'sim_test_client')
+        self.simulator = self.node
+        self.command_type = command_type
+        self.cmd_vel = self.client.create_publisher(command_type, 'cmd_vel', 10)
+        self.spin_until(lambda: self.cmd_vel.get_subscription_count() > 0)
+
+    @property
+    def world(self):
+        """Return the simulator's world, the ground truth."""
+        return self.simulator.world
+
+    def command(self, linear_mps, angular_radps=0.0):
+        """Publish a Twist, wait until the simulator has it and return the time it came."""
+        received = self.simulator.commands_received
+        command = self.command_type()
+        twist = command if self.command_type is Twist else command.twist
+        twist.linear.x = float(linear_mps)
+        twist.angular.z = float(angular_radps)
+        self.cmd_vel.publish(command)
+        self.spin_until(lambda: self.simulator.commands_received > received)
+        return self.world.time_s
+
+    def run_until(self, time_s):
+        """Spin until simulated time reaches ``time_s``."""
+        self.spin_until(lambda: self.world.time_s >= time_s)
+
+    def call(self, service_type, name, request):
+        """Call one of the simulator's services and return the response."""
+        client = self.client.create_client(service_type, f'/followbot_sim/{name}')
+        try:
+            self.spin_until(client.service_is_ready)
+            future = client.call_async(request)
+            self.spin_until(future.done)
+            return future.result()
+        finally:
+            self.client.destroy_client(client)
+
+    def pause(self, paused=True):
+        """Pause or resume the simulation through its service."""
+        return self.call(SetBool, 'pause', SetBool.Request(data=paused))
+
+    def step(self):
+        """Advance a paused simulation through its step service."""
+        return self.call(Trigger, 'step', Trigger.Request())
+
+    def reset(self):
+        """Put the robot back at the start through the reset service."""
+        return self.call(Trigger, 'reset', Trigger.Request())
+
+
+@pytest.fixture
+def sim(ros_context):
+    """Yield a simulator running as fast as possible, with a client, on this run's domain."""
+    harness = SimHarness(ros_context)
+    yield harness
+    harness.close()

@@ -126,6 +126,80 @@ def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
     assert steering and all(msg.linear.x == pytest.approx(0.2) for msg in steering)
 
 
+# What a ROS user sees of the simulator alone: topic -> (type, frame_id of its messages).
+SIMULATOR_TOPICS = {
+    '/camera/rgb/image_raw': ('sensor_msgs/msg/Image', 'camera_rgb_optical_frame'),
+    '/camera/rgb/camera_info': ('sensor_msgs/msg/CameraInfo', 'camera_rgb_optical_frame'),
+    '/camera/depth/image_raw': ('sensor_msgs/msg/Image', 'camera_depth_optical_frame'),
+    '/camera/depth/camera_info': ('sensor_msgs/msg/CameraInfo', 'camera_depth_optical_frame'),
+    '/camera/depth/points': ('sensor_msgs/msg/PointCloud2', 'camera_depth_optical_frame'),
+    '/odom': ('nav_msgs/msg/Odometry', 'odom'),
+    '/ground_truth/odom': ('nav_msgs/msg/Odometry', 'world'),
+    '/joint_states': ('sensor_msgs/msg/JointState', ''),
+    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 'world'),
+    '/clock': ('rosgraph_msgs/msg/Clock', None),
+}
+SIMULATOR_SERVICES = {
+    '/robot1/followbot_sim/pause': 'std_srvs/srv/SetBool',
+    '/robot1/followbot_sim/step': 'std_srvs/srv/Trigger',
+    '/robot1/followbot_sim/reset': 'std_srvs/srv/Trigger',
+}
+
+
+def message_class(type_name: str):
+    """Import a message class from its ROS type name, such as 'nav_msgs/msg/Odometry'."""
+    package, _, name = type_name.split('/')
+    return getattr(__import__(f'{package}.msg', fromlist=[name]), name)
+
+
+def test_simulator_serves_its_whole_interface_under_a_namespace(ros_context):
+    simulator = subprocess.Popen(
+        node_command('followbot_sim.sim_node', '-r', '__ns:=/robot1',
+                     '-p', 'real_time_factor:=2.0'), env=child_environment())
+    client = Node('independent_client', context=ros_context)
+    received = {}
+    for topic, (type_name, _) in SIMULATOR_TOPICS.items():
+        # /clock stays global; the robot's topics move under the namespace.
+        name = topic if topic in ('/clock', '/diagnostics') else '/robot1' + topic
+        client.create_subscription(
+            message_class(type_name), name,
+            lambda msg, topic=topic: received.setdefault(topic, []).append(msg), 10)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(client)
+    try:
+        assert spin_until(executor, lambda: all(
+            len(received.get(topic, ())) >= 2 for topic in SIMULATOR_TOPICS),
+            DISCOVERY_TIMEOUT_S), sorted(set(SIMULATOR_TOPICS) - set(received))
+        topic_types = dict(client.get_topic_names_and_types())
+        service_types = dict(client.get_service_names_and_types())
+        assert stop(simulator) == 0
+    finally:
+        if simulator.poll() is None:
+            simulator.kill()
+        executor.shutdown()
+        client.destroy_node()
+
+    for topic, (type_name, frame_id) in SIMULATOR_TOPICS.items():
+        name = topic if topic in ('/clock', '/diagnostics') else '/robot1' + topic
+        assert topic_types[name] == [type_name]
+        if frame_id is not None:
+            assert received[topic][-1].header.frame_id == frame_id, topic
+    for service, type_name in SIMULATOR_SERVICES.items():
+        assert service_types[service] == [type_name]
+    clock_s = stamp_s(received['/clock'][-1].clock)
+    # Every stamp is simulated time, at most the newest /clock.
+    for topic in set(SIMULATOR_TOPICS) - {'/clock'}:
+        assert 0.0 < stamp_s(received[topic][0].header.stamp) <= clock_s, topic
+    # Each image comes with the camera_info of the same instant.
+    for image, info in (('/camera/rgb/image_raw', '/camera/rgb/camera_info'),
+                        ('/camera/depth/image_raw', '/camera/depth/camera_info')):
+        info_stamps = {stamp_s(msg.header.stamp) for msg in received[info]}
+        assert {stamp_s(msg.header.stamp) for msg in received[image]} & info_stamps
+    depth = received['/camera/depth/image_raw'][-1]
+    assert (depth.encoding, depth.width, depth.height) == ('32FC1', 640, 480)
+    assert received['/odom'][-1].child_frame_id == 'base_footprint'
+
+
 def run_launcher(domain_id: int, *arguments: str, **popen_options) -> subprocess.Popen:
     """Start the followbot entry point as a user would."""
     return subprocess.Popen(
