@@ -1,12 +1,15 @@
 """
-The simulator node and the follower node lap the default course in one executor.
+The simulator node and the follower node lap a course in one executor.
 
 Both nodes run in this process on a private Context, talking over real DDS topics exactly as
 they do in two processes. The simulator's ground truth (its LapTracker) judges the run.
 """
 
+import cv2
 from followbot.follower_node import FollowerNode
+from followbot_sim.course import FLOOR_GREY, LINE_RGB, make_course
 from followbot_sim.sim_node import SimulatorNode
+import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
@@ -17,14 +20,18 @@ from rclpy.parameter import Parameter
 # book's proportional law measured 0.067 m there (cross-track RMS 0.026 m).
 # Room for a lap at the book's 0.2 m/s, slower in bends, before the test gives up.
 LAP_TIME_MARGIN = 1.6
+# The book's course.png: 1024 px for the 10 m floor, two colours, no anti-aliasing.
+BOOK_IMAGE_SIZE_PX = 1024
+PAINT_THRESHOLD = 0.5
 
 
-def test_follower_laps_the_default_course(ros_context):
-    simulator = SimulatorNode(context=ros_context, parameter_overrides=[
-        Parameter('real_time_factor', value=0.0)])
-    follower = FollowerNode(context=ros_context, parameter_overrides=[
+def lap(context, course: str) -> tuple:
+    """Run the follower on a course until it completes a lap; return the score and course."""
+    simulator = SimulatorNode(context=context, parameter_overrides=[
+        Parameter('real_time_factor', value=0.0), Parameter('course', value=course)])
+    follower = FollowerNode(context=context, parameter_overrides=[
         Parameter('use_sim_time', value=True)])
-    executor = SingleThreadedExecutor(context=ros_context)
+    executor = SingleThreadedExecutor(context=context)
     executor.add_node(simulator)
     executor.add_node(follower)
     tracker = simulator.lap_tracker
@@ -38,8 +45,35 @@ def test_follower_laps_the_default_course(ros_context):
         executor.shutdown()
         follower.destroy_node()
         simulator.destroy_node()
+    return tracker.summary(), course
 
-    summary = tracker.summary()
+
+def assert_followed_the_line(summary: dict, course) -> None:
+    """Check a lap was completed with the robot's centre over the painted line throughout."""
     assert summary['laps_completed'] >= 1, summary
     assert summary['max_distance_from_line_m'] <= course.line_width_m / 2.0, summary
     assert summary['time_off_line_s'] == 0.0, summary
+
+
+def test_follower_laps_the_default_course(ros_context):
+    assert_followed_the_line(*lap(ros_context, 'book_loop'))
+
+
+def test_follower_laps_a_course_drawn_in_a_png_file(ros_context, tmp_path):
+    # A floor image made the way the book's course.png is: RGBA, yellow on grey 116, hard edges.
+    reference = make_course('book_loop')
+    texture = reference.draw_texture(BOOK_IMAGE_SIZE_PX).astype(float)
+    painted = (texture[..., 0] - FLOOR_GREY) / (LINE_RGB[0] - FLOOR_GREY) > PAINT_THRESHOLD
+    image_rgba = np.full((BOOK_IMAGE_SIZE_PX, BOOK_IMAGE_SIZE_PX, 4), 255, np.uint8)
+    image_rgba[..., :3] = FLOOR_GREY
+    image_rgba[painted, :3] = LINE_RGB
+    cv2.imwrite(str(tmp_path / 'course.png'), cv2.cvtColor(image_rgba, cv2.COLOR_RGBA2BGRA))
+    x_m, y_m, yaw_rad = reference.start_pose()
+    (tmp_path / 'course.yaml').write_text(
+        'floor_size_m: 10.0\n'
+        f'image: {{file: course.png, start: [{x_m}, {y_m}, {np.degrees(yaw_rad)}]}}\n')
+
+    summary, course = lap(ros_context, str(tmp_path / 'course.yaml'))
+    # The centre line traced from the paint is the one the image was drawn from.
+    assert abs(course.length_m - reference.length_m) < 0.01 * reference.length_m
+    assert_followed_the_line(summary, course)
