@@ -20,6 +20,7 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
+from followbot_sim.course_library import COURSES
 from followbot_sim.sim_node import SCORE_STATUS_NAME
 import rclpy
 from rclpy.context import Context
@@ -63,7 +64,11 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'allows (default: 1)')
     parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
                         help="ROS_DOMAIN_ID for both nodes (default: the environment's, or 0)")
-    parser.add_argument('--course', default='book_loop', help='built-in course name')
+    parser.add_argument('--course', default='book_loop',
+                        help='a built-in course (' + ', '.join(COURSES) + ') or the path of a '
+                             'YAML course file (default: book_loop)')
+    parser.add_argument('--lighting', action='store_true',
+                        help='add bright and dim zones of light along the line')
     parser.add_argument('--report-period', type=float, default=10.0, metavar='SECONDS',
                         help='simulated seconds between progress lines (default: 10)')
     parser.add_argument('--pictures-dir', type=Path, default=None, metavar='DIR',
@@ -240,6 +245,7 @@ def main(argv=None) -> int:
           f'{pace}.', flush=True)
     simulator = ChildProcess('sim', _node_command('followbot_sim.sim_node', {
         'course': options.course,
+        'lighting_zones': 'true' if options.lighting else 'false',
         'real_time_factor': float(options.real_time_factor),
         'run_duration_s': float(options.duration),
         'score_period_s': 1.0,
