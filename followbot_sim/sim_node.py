@@ -216,7 +216,7 @@ class SimulatorNode(Node):
         tick_s = 1.0 / parameters['clock_rate_hz']
         self._schedule = [
             # /clock first: a subscriber on simulated time then knows the time of what follows.
-            _Periodic(tick_s, self._publish_clock),
+            _Periodic(tick_s, self._publish_clock_and_score_pose),
             _Periodic(1.0 / parameters['odom_rate_hz'], self._publish_robot_state),
             _Periodic(1.0 / camera_rate_hz, self._publish_cameras),
             _Periodic(parameters['overview_period_s'], self._publish_overview, next_s=0.0),
@@ -473,7 +473,7 @@ class SimulatorNode(Node):
             f"{100 * summary['rms_distance_from_line_m']:.1f} cm, "
             f"max {100 * summary['max_distance_from_line_m']:.1f} cm.")
 
-    def _publish_clock(self, stamp: Time) -> None:
+    def _publish_clock_and_score_pose(self, stamp: Time) -> None:
         self._clock_publisher.publish(ClockMsg(clock=stamp))
         x_m, y_m, _ = self._world.robot_pose()
         self._lap_tracker.update(x_m, y_m, self._world.time_s)
