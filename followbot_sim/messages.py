@@ -6,10 +6,9 @@ Builders that run every frame fill a message in place, so a publisher can reuse 
 its buffers.
 """
 
-import math
-
 from builtin_interfaces.msg import Time
 from followbot.image_conversion import fill_message_data
+from followbot_sim.frames import FrameTransform, quaternion_from_yaw
 from geometry_msgs.msg import Transform, TransformStamped
 from nav_msgs.msg import Odometry
 import numpy as np
@@ -119,8 +118,7 @@ def fill_odometry(msg: Odometry, pose: tuple, twist: tuple, exact: bool = False)
     msg.pose.pose.position.y = float(y_m)
     msg.pose.pose.position.z = 0.0
     orientation = msg.pose.pose.orientation
-    orientation.x, orientation.y = 0.0, 0.0
-    orientation.z, orientation.w = math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)
+    orientation.x, orientation.y, orientation.z, orientation.w = quaternion_from_yaw(yaw_rad)
     msg.twist.twist.linear.x = float(linear_mps)
     msg.twist.twist.angular.z = float(angular_radps)
     msg.pose.covariance = _diagonal_6x6(
@@ -130,33 +128,11 @@ def fill_odometry(msg: Odometry, pose: tuple, twist: tuple, exact: bool = False)
     return msg
 
 
-def planar_transform(parent: str, child: str, pose: tuple, time_msg: Time) -> TransformStamped:
+def transform_stamped(frame_transform: FrameTransform, time_msg: Time) -> TransformStamped:
     """
-    Make the stamped transform of a frame moving on the floor, such as odom -> base_footprint.
+    Make the stamped message of a transform: a fixed frame of the robot, or odom -> base.
 
-    :param parent: the fixed frame.
-    :param child: the moving frame.
-    :param pose: (x m, y m, yaw rad) of the child in the parent.
-    :param time_msg: the stamp.
-    :return: the transform.
-    """
-    x_m, y_m, yaw_rad = pose
-    transform = TransformStamped()
-    transform.header.stamp = time_msg
-    transform.header.frame_id = parent
-    transform.child_frame_id = child
-    transform.transform.translation.x = float(x_m)
-    transform.transform.translation.y = float(y_m)
-    transform.transform.rotation.z = math.sin(yaw_rad / 2.0)
-    transform.transform.rotation.w = math.cos(yaw_rad / 2.0)
-    return transform
-
-
-def static_transform(frame_transform, time_msg: Time) -> TransformStamped:
-    """
-    Make the stamped transform of a fixed frame of the robot.
-
-    :param frame_transform: a :class:`followbot_sim.frames.FrameTransform`.
+    :param frame_transform: the child frame's pose in its parent.
     :param time_msg: the stamp.
     :return: the transform.
     """

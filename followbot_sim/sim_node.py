@@ -303,7 +303,7 @@ class SimulatorNode(Node):
         self._tf_static_publisher = self.create_publisher(TFMessage, '/tf_static', TF_STATIC_QOS)
         now = messages.stamp(self._world.time_s)
         self._tf_static_publisher.publish(TFMessage(transforms=[
-            messages.static_transform(transform, now)
+            messages.transform_stamped(transform, now)
             for transform in self._world.sensor_frames()]))
 
     def _make_cmd_vel_subscription(self, stamped: bool) -> None:
@@ -396,10 +396,7 @@ class SimulatorNode(Node):
             response.message = f'The run ended at run_duration_s = {self._run_duration_s:g} s.'
             return response
         steps = self.get_parameter('step_physics_steps').value
-        for _ in range(steps):
-            self._physics_step()
-            if self._finished:
-                break
+        self._advance_to(self._world.time_s + steps * self._world.timestep_s)
         response.success = True
         response.message = f'Stepped to {self._world.time_s:.3f} s.'
         return response
@@ -501,8 +498,9 @@ class SimulatorNode(Node):
         self._joint_state_publisher.publish(messages.joint_state(
             WHEEL_JOINTS, wheel_angles_rad, world.wheel_speeds(), stamp))
         if self._tf_publisher is not None:
-            self._tf_publisher.publish(TFMessage(transforms=[messages.planar_transform(
-                frames.ODOM_FRAME, frames.BASE_FOOTPRINT_FRAME, self._odometry.pose, stamp)]))
+            self._tf_publisher.publish(TFMessage(transforms=[messages.transform_stamped(
+                frames.FrameTransform.planar(frames.ODOM_FRAME, frames.BASE_FOOTPRINT_FRAME,
+                                             *self._odometry.pose), stamp)]))
 
     def _publish_cameras(self, stamp: Time) -> None:
         if self._image_publisher is not None:
