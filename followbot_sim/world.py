@@ -22,7 +22,8 @@ from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
 from followbot_sim.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPTH_FRAME,
                                   CAMERA_DEPTH_OPTICAL_FRAME, CAMERA_LINK_FRAME, CAMERA_RGB_FRAME,
                                   CAMERA_RGB_OPTICAL_FRAME, FrameTransform,
-                                  optical_rotation_xyzw, quaternion_from_matrix)
+                                  optical_rotation_xyzw, quaternion_from_matrix,
+                                  yaw_from_quaternion)
 import mujoco
 import numpy as np
 
@@ -464,8 +465,7 @@ class FollowbotWorld:
         """
         qpos = self._free_joint_qpos
         x_m, y_m = self.data.qpos[qpos:qpos + 2]
-        w, qx, qy, qz = self.data.qpos[qpos + 3:qpos + 7]
-        yaw_rad = math.atan2(2.0 * (w * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        yaw_rad = yaw_from_quaternion(_mujoco_to_xyzw(self.data.qpos[qpos + 3:qpos + 7]))
         return float(x_m), float(y_m), yaw_rad
 
     def robot_twist(self) -> tuple[float, float]:
