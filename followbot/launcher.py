@@ -20,6 +20,7 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
+from followbot_sim import messages
 from followbot_sim.course_library import COURSES
 from followbot_sim.sim_node import SCORE_STATUS_NAME
 import rclpy
@@ -167,7 +168,7 @@ class MonitorNode(Node):
 
     def debug_image_callback(self, msg: Image) -> None:
         """Save the follower's view about once a second of simulated time."""
-        stamp_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp_s = messages.seconds(msg.header.stamp)
         if stamp_s - self._last_camera_save_s >= 1.0 or stamp_s < self._last_camera_save_s:
             self._last_camera_save_s = stamp_s
             self._save(msg, CAMERA_PICTURE)

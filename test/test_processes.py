@@ -14,6 +14,7 @@ import time
 
 from conftest import child_environment, run_domain_id, spin_until
 import cv2
+from followbot_sim.messages import seconds
 from geometry_msgs.msg import Twist
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -60,11 +61,6 @@ class TopicRecorder:
         node.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
 
 
-def stamp_s(stamp) -> float:
-    """Return a builtin_interfaces/Time as seconds."""
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
 def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
     # The tests of a run go one after another: the children share the run's own domain.
     environment = child_environment()
@@ -102,7 +98,7 @@ def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
     assert (image.width, image.height, image.encoding) == (640, 480, 'bgr8')
     assert image.step == 640 * 3 and len(image.data) == 640 * 480 * 3
     assert image.header.frame_id == 'camera_rgb_optical_frame'
-    stamps_s = [stamp_s(msg.header.stamp) for msg in images]
+    stamps_s = [seconds(msg.header.stamp) for msg in images]
     periods_s = [later - earlier for earlier, later in zip(stamps_s, stamps_s[1:])]
     # 20 Hz of simulated time: consecutive stamps 0.05 s apart.
     assert periods_s == pytest.approx([CAMERA_PERIOD_S] * len(periods_s), abs=1e-6)
@@ -115,10 +111,10 @@ def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
     assert (cx, cy) == pytest.approx((319.5, 239.5))
     assert list(info.p[:3]) == pytest.approx([fx, 0.0, cx])
     # Every image has its camera_info with the same stamp (the newest may still be on its way).
-    info_stamps_s = {stamp_s(msg.header.stamp) for msg in camera_infos}
+    info_stamps_s = {seconds(msg.header.stamp) for msg in camera_infos}
     assert set(stamps_s[:-1]) <= info_stamps_s
 
-    clock_s = [stamp_s(msg.clock) for msg in clocks]
+    clock_s = [seconds(msg.clock) for msg in clocks]
     assert clock_s == sorted(clock_s) and clock_s[-1] > clock_s[0]
     assert clock_s[-1] >= stamps_s[-1] - CAMERA_PERIOD_S
 
@@ -186,15 +182,15 @@ def test_simulator_serves_its_whole_interface_under_a_namespace(ros_context):
             assert received[topic][-1].header.frame_id == frame_id, topic
     for service, type_name in SIMULATOR_SERVICES.items():
         assert service_types[service] == [type_name]
-    clock_s = stamp_s(received['/clock'][-1].clock)
+    clock_s = seconds(received['/clock'][-1].clock)
     # Every stamp is simulated time, at most the newest /clock.
     for topic in set(SIMULATOR_TOPICS) - {'/clock'}:
-        assert 0.0 < stamp_s(received[topic][0].header.stamp) <= clock_s, topic
+        assert 0.0 < seconds(received[topic][0].header.stamp) <= clock_s, topic
     # Each image comes with the camera_info of the same instant.
     for image, info in (('/camera/rgb/image_raw', '/camera/rgb/camera_info'),
                         ('/camera/depth/image_raw', '/camera/depth/camera_info')):
-        info_stamps = {stamp_s(msg.header.stamp) for msg in received[info]}
-        assert {stamp_s(msg.header.stamp) for msg in received[image]} & info_stamps
+        info_stamps = {seconds(msg.header.stamp) for msg in received[info]}
+        assert {seconds(msg.header.stamp) for msg in received[image]} & info_stamps
     depth = received['/camera/depth/image_raw'][-1]
     assert (depth.encoding, depth.width, depth.height) == ('32FC1', 640, 480)
     assert received['/odom'][-1].child_frame_id == 'base_footprint'
