@@ -156,6 +156,25 @@ def world_to_texture_px(x_m, y_m, size_px, floor_size_m=BOOK_FLOOR_SIZE_M):
     return col, row
 
 
+def texture_px_to_world(col, row, size_px, floor_size_m=BOOK_FLOOR_SIZE_M):
+    """
+    Convert continuous floor-texture pixel coordinates to world coordinates.
+
+    The inverse of :func:`world_to_texture_px`, with the same pixel-centre convention.
+
+    :param col: column(s) from the west edge, scalar or array.
+    :param row: row(s) from the north edge, scalar or array.
+    :param size_px: side of the square texture in pixels.
+    :param floor_size_m: side of the square floor in metres.
+    :return: ``(x_m, y_m)`` as floats (or float arrays).
+    """
+    m_per_px = floor_size_m / size_px
+    half_floor_m = floor_size_m / 2.0
+    x_m = (np.asarray(col, dtype=float) + 0.5) * m_per_px - half_floor_m
+    y_m = half_floor_m - (np.asarray(row, dtype=float) + 0.5) * m_per_px
+    return x_m, y_m
+
+
 def _wrap_to_half_length(delta_m, length_m):
     """
     Wrap a difference of arc lengths into (-length / 2, length / 2].

@@ -33,6 +33,7 @@ import pathlib
 
 import cv2
 from followbot_sim.course import Course
+from followbot_sim.course import texture_px_to_world
 from followbot_sim.course import world_to_texture_px
 import numpy as np
 
@@ -207,7 +208,8 @@ def course_from_image(image, floor_size_m, start_pose=None, name='image', line_w
     runs, closed_by_run = tracer.trace(seed_px, seed_heading,
                                        np.count_nonzero(line_pixels) / width_px)
     loop_px = tracer.join_runs(runs, closed_by_run)
-    loop_xy = _px_to_world(loop_px, size_px, floor_size_m)
+    loop_xy = np.stack(texture_px_to_world(loop_px[:, 0], loop_px[:, 1], size_px,
+                                           floor_size_m), axis=1)
     measured_width_m = tracer.line_width_px() / px_per_m
     course_width_m = measured_width_m if line_width_m is None else float(line_width_m)
 
@@ -304,21 +306,6 @@ def _line_ridge(line_pixels):
     ridge = (distance_px >= cv2.dilate(distance_px, np.ones((3, 3), np.uint8))) & line_pixels
     # A band of w pixels has its middle pixel (w + 1) / 2 from the nearest floor pixel.
     return max(2.0 * float(np.median(distance_px[ridge])) - 1.0, 1.0), ridge
-
-
-def _px_to_world(points_px, size_px, floor_size_m):
-    """
-    Convert pixel coordinates of the floor image to world points.
-
-    :param points_px: (N, 2) points as (column, row), pixel centres at integers.
-    :param size_px: side of the image in pixels.
-    :param floor_size_m: side of the floor in metres.
-    :return: (N, 2) points in metres.
-    """
-    m_per_px = floor_size_m / size_px
-    x_m = (points_px[:, 0] + 0.5) * m_per_px - floor_size_m / 2.0
-    y_m = floor_size_m / 2.0 - (points_px[:, 1] + 0.5) * m_per_px
-    return np.stack([x_m, y_m], axis=1)
 
 
 def _unit(vector):

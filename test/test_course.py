@@ -18,6 +18,7 @@ from followbot_sim.course import LightingZone
 from followbot_sim.course import LINE_RGB
 from followbot_sim.course import make_course
 from followbot_sim.course import MAX_POINT_SPACING_M
+from followbot_sim.course import texture_px_to_world
 from followbot_sim.course import world_to_texture_px
 import numpy as np
 import pytest
@@ -325,6 +326,12 @@ def test_nearest_returns_plain_floats(book):
 ])
 def test_world_to_texture_px_follows_mujoco_plane_convention(x_m, y_m, expected_col_row):
     assert world_to_texture_px(x_m, y_m, 100) == pytest.approx(expected_col_row)
+
+
+@pytest.mark.parametrize('x_m, y_m', [(-4.95, 4.95), (0.0, 0.0), (3.21, -1.7), (-5.0, 5.0)])
+def test_texture_px_to_world_inverts_world_to_texture_px(x_m, y_m):
+    col, row = world_to_texture_px(x_m, y_m, 100, 12.0)
+    assert texture_px_to_world(col, row, 100, 12.0) == pytest.approx((x_m, y_m))
 
 
 def test_course_world_to_texture_px_uses_its_floor_size():
