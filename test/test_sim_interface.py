@@ -39,32 +39,12 @@ STEPS_PER_CALL = 10
 PHYSICS_STEP_S = 0.002
 
 
-def transform_matrix(translation_m, rotation_xyzw) -> np.ndarray:
-    """Return the 4x4 homogeneous matrix of a translation and a unit quaternion."""
-    x, y, z, w = rotation_xyzw
-    matrix = np.eye(4)
-    matrix[:3, :3] = [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-    matrix[:3, 3] = translation_m
-    return matrix
-
-
 def world_from_frame(harness, frame: str) -> np.ndarray:
-    """Return the pose of a robot frame in the world, from ground truth and the static frames."""
-    x_m, y_m, yaw_rad = harness.world.robot_pose()
-    pose = transform_matrix((x_m, y_m, 0.0), (0.0, 0.0, math.sin(yaw_rad / 2),
-                                              math.cos(yaw_rad / 2)))
-    parents = {transform.child: transform for transform in harness.world.sensor_frames()}
-    chain = []
-    while frame != frames.BASE_FOOTPRINT_FRAME:
-        transform = parents[frame]
-        chain.append(transform_matrix(transform.translation_m, transform.rotation_xyzw))
-        frame = transform.parent
-    for matrix in reversed(chain):
-        pose = pose @ matrix
-    return pose
+    """Return the 4x4 pose of a robot frame in the world, from ground truth and /tf_static."""
+    pose = frames.FrameTransform.planar(frames.WORLD_FRAME, frames.BASE_FOOTPRINT_FRAME,
+                                        *harness.world.robot_pose())
+    return frames.chain_transforms([pose, *harness.world.sensor_frames()],
+                                   frames.WORLD_FRAME, frame).as_matrix()
 
 
 def project(info: CameraInfo, camera_in_world: np.ndarray, point_xyz) -> tuple:
