@@ -80,6 +80,9 @@ class NodeHarness:
         :param client_name: the client node's name.
         """
         self.node = node
+        # Kept, not asked of the node per message: a test may destroy the node while /rosout
+        # still delivers its last lines.
+        self._node_name = node.get_name()
         self.client = Node(client_name, context=context)
         self.logs = []
         # /rosout keeps a history for late joiners (transient local), so the node's start-up
@@ -90,7 +93,7 @@ class NodeHarness:
         self.executor.add_node(self.client)
 
     def _log_callback(self, msg: Log) -> None:
-        if msg.name == self.node.get_name():
+        if msg.name == self._node_name:
             self.logs.append(msg)
 
     @property
