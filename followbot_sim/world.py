@@ -14,9 +14,9 @@ the robot's fixed frames read from the compiled model.
 import math
 import os
 from pathlib import Path
-import sys
 import time
 
+from followbot.package_files import share_file
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
 from followbot_sim.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPTH_FRAME,
@@ -27,7 +27,6 @@ from followbot_sim.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_
 import mujoco
 import numpy as np
 
-PACKAGE_NAME = 'followbot'
 SCENE_FILE = 'scene.xml'
 ROBOT_BODY = BASE_FOOTPRINT_FRAME
 ROBOT_FREE_JOINT = 'base_free'
@@ -92,25 +91,10 @@ def models_directory() -> Path:
     """
     Find the folder holding the MJCF models, from a source checkout or an install.
 
-    A source checkout (or an editable install) has ``models/`` beside the Python packages;
-    an installed package (colcon, or pip into a prefix) has it in ``share/followbot/models``,
-    found through the ament index when the workspace is sourced, else under ``sys.prefix``.
-
     :return: the models folder.
     :raises FileNotFoundError: if no folder holds the scene.
     """
-    candidates = [Path(__file__).resolve().parent.parent / 'models']
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        candidates.append(Path(get_package_share_directory(PACKAGE_NAME)) / 'models')
-    except (ImportError, LookupError, OSError):
-        pass  # No ament index holds this package: not a sourced ROS install.
-    candidates.append(Path(sys.prefix) / 'share' / PACKAGE_NAME / 'models')
-    for candidate in candidates:
-        if (candidate / SCENE_FILE).is_file():
-            return candidate
-    searched = ', '.join(str(path) for path in candidates)
-    raise FileNotFoundError(f'No {SCENE_FILE} found for {PACKAGE_NAME}; looked in: {searched}.')
+    return share_file('models', SCENE_FILE).parent
 
 
 def focal_length_px(image_width_px: int, horizontal_fov_deg: float) -> float:
