@@ -1,4 +1,4 @@
-"""Tests of the yellow-line detector on synthetic images of the course."""
+"""Tests of the multi-band yellow-line detector on synthetic images of the course."""
 
 import math
 
@@ -7,6 +7,7 @@ from followbot.image_conversion import array_to_image
 from followbot.image_conversion import image_to_array
 from followbot.image_conversion import ImageConversionError
 from followbot.line_detector import band_rows
+from followbot.line_detector import BandDetection
 from followbot.line_detector import Detection
 from followbot.line_detector import DetectorConfig
 from followbot.line_detector import draw_debug
@@ -19,8 +20,14 @@ WIDTH_PX = 640
 HEIGHT_PX = 480
 FLOOR_GREY = 116
 LINE_HALF_WIDTH_PX = 7
-# The default band of a 640x480 image: 20 rows centred on row 360.
-DEFAULT_BAND_ROWS = (350, 370)
+LINE_WIDTH_PX = 2 * LINE_HALF_WIDTH_PX + 1
+CENTRE_COLUMN = WIDTH_PX // 2
+# The default bands of a 640x480 image, nearest first.
+DEFAULT_BANDS = band_rows(HEIGHT_PX, DetectorConfig())
+# The book's single band: 20 rows at 3/4 of a 480-row image, rows 360-380.
+BOOK_CONFIG = DetectorConfig(
+    band_count=1, band_center_fraction=0.7708333333333334, band_height_px=20)
+BOOK_BAND_ROWS = (360, 380)
 
 # The course's yellow RGB(255, 246, 0), in shade, and in deep shade (value 64).
 YELLOWS_RGB = {
@@ -37,6 +44,19 @@ CONVERSIONS_FROM_BGR = {
     'rgba8': cv2.COLOR_BGR2RGBA,
 }
 
+# Camera noise like the simulator's camera_noise_stddev, drawn from a fixed seed.
+CAMERA_NOISE_STDDEV = 8.0
+NOISE_SEED = 20240611
+# A noisy centroid stays this close to the noise-free one: the noise is symmetric.
+NOISY_CENTROID_TOLERANCE_PX = 0.5
+
+# Debug drawing colours (BGR), as the overlay's legend describes them.
+RED_BGR = (0, 0, 255)
+GREEN_BGR = (0, 255, 0)
+BLUE_BGR = (255, 0, 0)
+# The overlay's text sits in the top rows of the image, above every band.
+TEXT_ROWS_PX = 60
+
 
 def bgr(rgb):
     """Return an RGB colour as a BGR tuple."""
@@ -48,12 +68,40 @@ def floor_image(height=HEIGHT_PX, width=WIDTH_PX, grey=FLOOR_GREY):
     return np.full((height, width, 3), grey, dtype=np.uint8)
 
 
+def paint_line(image, column, rows=slice(None), half_width_px=LINE_HALF_WIDTH_PX,
+               rgb=LIT_YELLOW_RGB):
+    """
+    Paint a vertical stripe of the line's colour centred exactly on a column, in place.
+
+    :param image: the BGR image to paint on.
+    :param column: the stripe's centre column.
+    :param rows: the rows to paint, all by default.
+    :param half_width_px: columns either side of the centre column.
+    :param rgb: the colour.
+    :return: the image.
+    """
+    image[rows, max(column - half_width_px, 0):column + half_width_px + 1] = bgr(rgb)
+    return image
+
+
 def vertical_line_image(column, height=HEIGHT_PX, width=WIDTH_PX,
                         half_width_px=LINE_HALF_WIDTH_PX, rgb=LIT_YELLOW_RGB):
     """Return a floor image with a full-height line centred exactly on a column."""
-    image = floor_image(height, width)
-    image[:, max(column - half_width_px, 0):column + half_width_px + 1] = bgr(rgb)
+    return paint_line(floor_image(height, width), column, half_width_px=half_width_px, rgb=rgb)
+
+
+def lines_image(*columns):
+    """Return a floor image with full-height lines centred on the given columns."""
+    image = floor_image()
+    for column in columns:
+        paint_line(image, column)
     return image
+
+
+def band_slice(band):
+    """Return the rows of a (top, bottom) band as a slice."""
+    top, bottom = band
+    return slice(top, bottom)
 
 
 def expected_error(column, width=WIDTH_PX):
@@ -61,21 +109,112 @@ def expected_error(column, width=WIDTH_PX):
     return (column - width / 2) / (width / 2)
 
 
-def test_default_band_is_centred_on_three_quarters_of_the_height():
-    assert band_rows(HEIGHT_PX, DetectorConfig()) == DEFAULT_BAND_ROWS
+def centroids_px(detection):
+    """Return the centroid columns of a detection's bands, NaN where a band saw nothing."""
+    return [band.centroid_x_px for band in detection.bands]
 
+
+def add_camera_noise(image_bgr, generator):
+    """Return an image with Gaussian noise added to every channel, saturating at 0 and 255."""
+    noise = np.rint(generator.normal(0.0, CAMERA_NOISE_STDDEV, image_bgr.shape))
+    return np.clip(image_bgr + noise, 0, 255).astype(np.uint8)
+
+
+def band_result(found, centroid_x_px, top_px, area_px):
+    """Return a BandDetection of 10 rows from top_px, centred on its rows where found."""
+    centroid_y_px = top_px + 4.5 if found else math.nan
+    return BandDetection(found=found, centroid_x_px=centroid_x_px, centroid_y_px=centroid_y_px,
+                         area_px=area_px, top_px=top_px, bottom_px=top_px + 10)
+
+
+# Band geometry.
+
+def test_default_config_searches_six_bands_up_the_image_nearest_first():
+    config = DetectorConfig()
+    assert len(DEFAULT_BANDS) == config.band_count == 6
+    spacing_px = config.band_spacing_fraction * HEIGHT_PX
+    for index, (top, bottom) in enumerate(DEFAULT_BANDS):
+        assert 0 <= top < bottom <= HEIGHT_PX
+        assert bottom - top == config.band_height_px
+        nominal_centre = HEIGHT_PX * config.band_center_fraction - index * spacing_px
+        assert abs((top + bottom) / 2 - nominal_centre) <= 1.0
+    for (near_top, _), (_, far_bottom) in zip(DEFAULT_BANDS, DEFAULT_BANDS[1:]):
+        assert far_bottom <= near_top, 'bands must not overlap and go up the image'
+
+
+def test_bands_are_exactly_one_spacing_apart():
+    config = DetectorConfig(band_count=6, band_center_fraction=0.95,
+                            band_spacing_fraction=0.125, band_height_px=12)
+    assert band_rows(HEIGHT_PX, config) == [
+        (450, 462), (390, 402), (330, 342), (270, 282), (210, 222), (150, 162)]
+
+
+def test_book_config_searches_rows_360_to_380():
+    assert band_rows(HEIGHT_PX, BOOK_CONFIG) == [BOOK_BAND_ROWS]
+    detection = LineDetector(BOOK_CONFIG).detect(vertical_line_image(420))
+    assert [(band.top_px, band.bottom_px) for band in detection.bands] == [BOOK_BAND_ROWS]
+    # The book steers with -(cx - w/2) / 100: cx = 420 at w = 640 is an error of 0.3125.
+    assert detection.error == pytest.approx(0.3125)
+
+
+# Fractions that are exact in binary, so every band centre is a whole row.
+@pytest.mark.parametrize('fields, height, expected_bands', (
+    # Twenty bands asked for; those falling above the image are left out.
+    ({'band_count': 20, 'band_center_fraction': 0.9375, 'band_spacing_fraction': 0.125},
+     HEIGHT_PX, [(444, 456), (384, 396), (324, 336), (264, 276), (204, 216), (144, 156),
+                 (84, 96), (24, 36)]),
+    # The third band's centre is row 0: it is clipped to the image, the fourth left out.
+    ({'band_count': 6, 'band_center_fraction': 0.9375, 'band_spacing_fraction': 0.46875},
+     HEIGHT_PX, [(444, 456), (219, 231), (0, 6)]),
+    # Bands 80 rows high 60 rows apart would overlap: only the nearest is searched.
+    ({'band_count': 6, 'band_center_fraction': 0.9375, 'band_spacing_fraction': 0.125,
+      'band_height_px': 80}, HEIGHT_PX, [(410, 480)]),
+    # No spacing: the further bands would repeat the nearest one's rows.
+    ({'band_count': 6, 'band_spacing_fraction': 0.0, 'band_center_fraction': 0.5},
+     HEIGHT_PX, [(234, 246)]),
+    ({'band_count': 1, 'band_center_fraction': 0.99}, HEIGHT_PX, [(469, 480)]),
+    ({'band_count': 1, 'band_center_fraction': 0.01, 'band_height_px': 30},
+     HEIGHT_PX, [(0, 19)]),
+    ({'band_count': 3, 'band_height_px': 1000}, HEIGHT_PX, [(0, HEIGHT_PX)]),
+    ({'band_count': 1, 'band_center_fraction': 0.75, 'band_height_px': 1},
+     HEIGHT_PX, [(360, 361)]),
+    ({}, 1, [(0, 1)]),
+    ({}, 3, [(0, 3)]),
+))
+def test_band_rows_clip_to_the_image_and_leave_out_overlapping_bands(
+        fields, height, expected_bands):
+    fields = {'band_height_px': 12, **fields}
+    config = DetectorConfig(min_area_px=1, **fields)
+    assert band_rows(height, config) == expected_bands
+
+    detection = LineDetector(config).detect(vertical_line_image(480, height=height))
+    assert [(band.top_px, band.bottom_px) for band in detection.bands] == expected_bands
+    assert detection.confidence == 1.0
+    for (top, bottom), band_detection in zip(expected_bands, detection.bands):
+        assert band_detection.area_px == (bottom - top) * LINE_WIDTH_PX
+
+
+# Finding the line.
 
 @pytest.mark.parametrize('colour', YELLOWS_RGB)
-def test_centred_line_gives_zero_error(colour):
+def test_centred_line_gives_zero_error_in_every_band(colour):
     detection = LineDetector().detect(
-        vertical_line_image(WIDTH_PX // 2, rgb=YELLOWS_RGB[colour]))
+        vertical_line_image(CENTRE_COLUMN, rgb=YELLOWS_RGB[colour]))
     assert detection.found
+    assert detection.confidence == 1.0
     assert detection.error == pytest.approx(0.0, abs=1e-9)
-    assert detection.centroid_x_px == pytest.approx(WIDTH_PX / 2)
-    assert detection.centroid_y_px == pytest.approx(sum(DEFAULT_BAND_ROWS) / 2 - 0.5)
-    assert detection.area_px == (2 * LINE_HALF_WIDTH_PX + 1) * 20
-    assert (detection.band_top_px, detection.band_bottom_px) == DEFAULT_BAND_ROWS
+    assert detection.seen_bands == detection.bands
+    assert detection.nearest is detection.bands[0]
     assert detection.image_width_px == WIDTH_PX
+    assert detection.image_height_px == HEIGHT_PX
+    assert [(band.top_px, band.bottom_px) for band in detection.bands] == DEFAULT_BANDS
+    for band_detection in detection.bands:
+        rows = band_detection.bottom_px - band_detection.top_px
+        assert band_detection.centroid_x_px == pytest.approx(CENTRE_COLUMN)
+        assert band_detection.centroid_y_px == pytest.approx(
+            (band_detection.top_px + band_detection.bottom_px) / 2 - 0.5)
+        assert band_detection.area_px == LINE_WIDTH_PX * rows
+    assert detection.area_px == sum(band_detection.area_px for band_detection in detection.bands)
 
 
 @pytest.mark.parametrize('colour', YELLOWS_RGB)
@@ -89,37 +228,33 @@ def test_centred_line_gives_zero_error(colour):
 ))
 def test_offset_line_gives_error_of_its_side_and_size(column, side, colour):
     detection = LineDetector().detect(vertical_line_image(column, rgb=YELLOWS_RGB[colour]))
-    assert detection.found
+    assert detection.confidence == 1.0
     assert math.copysign(1.0, detection.error) == side
-    assert abs(detection.centroid_x_px - column) <= 1.0
+    assert abs(detection.nearest.centroid_x_px - column) <= 1.0
     assert detection.error == pytest.approx(expected_error(column), abs=1.0 / (WIDTH_PX / 2))
 
 
-def test_book_example_offset():
-    # The book steers with -(cx - w/2) / 100: cx = 420 at w = 640 is an error of 0.3125.
-    assert LineDetector().detect(vertical_line_image(420)).error == pytest.approx(0.3125)
-
-
-@pytest.mark.parametrize('center, radius', (
-    ((100, 480), 300),
-    ((640, 600), 350),
-    ((320, 100), 255),
+@pytest.mark.parametrize('center, radius, config', (
+    # Bends gentle enough that each band's stripe is within reach of the nearest band's.
+    ((-200, 480), 700, DetectorConfig()),
+    ((840, 480), 700, DetectorConfig()),
+    ((100, 480), 300, BOOK_CONFIG),
+    ((640, 600), 350, BOOK_CONFIG),
 ))
-def test_curved_line_centroid_is_the_arc_mean_column_in_the_band(center, radius):
+def test_curved_line_centroid_is_the_arc_mean_in_each_band(center, radius, config):
     arc_mask = np.zeros((HEIGHT_PX, WIDTH_PX), dtype=np.uint8)
     cv2.circle(arc_mask, center, radius, 255, thickness=15, lineType=cv2.LINE_8)
     image = floor_image()
     image[arc_mask > 0] = bgr(LIT_YELLOW_RGB)
-    top, bottom = DEFAULT_BAND_ROWS
-    rows, columns = np.nonzero(arc_mask[top:bottom])
-    assert columns.size > 0, 'the arc must cross the band'
 
-    detection = LineDetector().detect(image)
+    detection = LineDetector(config).detect(image)
 
-    assert detection.found
-    assert detection.area_px == columns.size
-    assert detection.centroid_x_px == pytest.approx(columns.mean())
-    assert detection.centroid_y_px == pytest.approx(top + rows.mean())
+    assert detection.confidence == 1.0
+    for band_detection in detection.bands:
+        rows, columns = np.nonzero(arc_mask[band_detection.top_px:band_detection.bottom_px])
+        assert band_detection.area_px == columns.size
+        assert band_detection.centroid_x_px == pytest.approx(columns.mean())
+        assert band_detection.centroid_y_px == pytest.approx(band_detection.top_px + rows.mean())
 
 
 @pytest.mark.parametrize('image', (
@@ -133,34 +268,70 @@ def test_no_line_is_not_found(image):
     detection = LineDetector().detect(image)
     assert not detection.found
     assert detection.error == 0.0
-    assert math.isnan(detection.centroid_x_px)
-    assert math.isnan(detection.centroid_y_px)
+    assert detection.confidence == 0.0
+    assert detection.nearest is None
+    assert detection.seen_bands == ()
     assert detection.area_px == 0
+    assert len(detection.bands) == len(DEFAULT_BANDS)
+    for band_detection in detection.bands:
+        assert not band_detection.found
+        assert math.isnan(band_detection.centroid_x_px)
+        assert math.isnan(band_detection.centroid_y_px)
+        assert band_detection.area_px == 0
 
 
-def test_speck_smaller_than_min_area_is_not_found():
+def test_stripe_smaller_than_min_area_is_not_found_but_counted_in_its_band():
     image = floor_image()
-    image[355:359, 100:104] = bgr(LIT_YELLOW_RGB)
+    top, _ = DEFAULT_BANDS[0]
+    image[top + 2:top + 6, 100:104] = bgr(LIT_YELLOW_RGB)
     detection = LineDetector(DetectorConfig(min_area_px=20)).detect(image)
     assert not detection.found
-    assert detection.area_px == 16
+    assert detection.bands[0].area_px == 16
+    assert detection.area_px == 0
     assert detection.error == 0.0
 
 
-def test_speck_of_min_area_is_found():
+def test_stripe_of_min_area_is_found():
     image = floor_image()
-    image[355:360, 100:104] = bgr(LIT_YELLOW_RGB)
+    top, _ = DEFAULT_BANDS[0]
+    image[top + 2:top + 7, 100:104] = bgr(LIT_YELLOW_RGB)
     detection = LineDetector(DetectorConfig(min_area_px=20)).detect(image)
     assert detection.found
     assert detection.area_px == 20
+    assert detection.nearest.centroid_x_px == pytest.approx(101.5)
 
 
-@pytest.mark.parametrize('rows', (
-    slice(0, 350),
-    slice(370, HEIGHT_PX),
-    slice(100, 200),
-))
-def test_line_only_outside_the_band_is_not_found(rows):
+def test_many_specks_each_below_min_area_are_not_a_line():
+    config = DetectorConfig()
+    image = floor_image()
+    speck_columns = range(20, WIDTH_PX - 20, 12)
+    speck_side_px = 3
+    for top, _ in DEFAULT_BANDS:
+        for column in speck_columns:
+            image[top + 1:top + 1 + speck_side_px, column:column + speck_side_px] = bgr(
+                LIT_YELLOW_RGB)
+    speck_area_px = speck_side_px ** 2 * len(speck_columns)
+    assert speck_area_px > config.min_area_px > speck_side_px ** 2, \
+        'the specks must only count together'
+
+    detection = LineDetector(config).detect(image)
+
+    assert not detection.found
+    assert [band_detection.area_px for band_detection in detection.bands] == [
+        speck_area_px] * len(DEFAULT_BANDS)
+
+
+def rows_outside_the_bands():
+    """Return slices of rows no default band covers: below, between and above them."""
+    nearest_top, nearest_bottom = DEFAULT_BANDS[0]
+    _, second_bottom = DEFAULT_BANDS[1]
+    farthest_top, _ = DEFAULT_BANDS[-1]
+    return (slice(nearest_bottom, HEIGHT_PX), slice(second_bottom, nearest_top),
+            slice(0, farthest_top))
+
+
+@pytest.mark.parametrize('rows', rows_outside_the_bands(), ids=('below', 'between', 'above'))
+def test_line_only_outside_the_bands_is_not_found(rows):
     image = floor_image()
     image[rows, 300:340] = bgr(LIT_YELLOW_RGB)
     assert not LineDetector().detect(image).found
@@ -179,6 +350,199 @@ def test_other_colours_are_not_the_line(colour_bgr):
     assert not LineDetector().detect(image).found
 
 
+# Choosing the line's stripe.
+
+@pytest.mark.parametrize('patch_columns, patch_rows', (
+    (slice(400, 440), slice(None)),
+    (slice(250, 290), slice(DEFAULT_BANDS[3][0], DEFAULT_BANDS[1][1])),
+    (slice(340, 345), slice(None)),
+    (slice(0, 60), slice(None)),
+), ids=('right', 'left_in_middle_bands', 'close_thin', 'far_left_edge'))
+def test_yellow_patch_beside_the_line_does_not_move_it(patch_columns, patch_rows):
+    clean = vertical_line_image(CENTRE_COLUMN)
+    patched = clean.copy()
+    patched[patch_rows, patch_columns] = bgr(LIT_YELLOW_RGB)
+
+    detection = LineDetector().detect(patched)
+
+    assert detection == LineDetector().detect(clean)
+    assert detection.confidence == 1.0
+    assert detection.error == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize('columns, chosen_column', (
+    ((200, 500), 200),
+    ((100, 400), 400),
+    ((260, 360), 360),
+    ((CENTRE_COLUMN, 600), CENTRE_COLUMN),
+))
+def test_first_frame_takes_the_stripe_nearest_the_image_centre(columns, chosen_column):
+    detection = LineDetector().detect(lines_image(*columns))
+    assert detection.confidence == 1.0
+    assert centroids_px(detection) == pytest.approx([chosen_column] * len(DEFAULT_BANDS))
+
+
+def test_next_frame_follows_the_line_not_a_patch_nearer_the_centre():
+    detector = LineDetector()
+    detector.detect(vertical_line_image(200))
+    detection = detector.detect(lines_image(215, 300))
+
+    assert centroids_px(detection) == pytest.approx([215] * len(DEFAULT_BANDS))
+    assert detection.error == pytest.approx(expected_error(215))
+
+
+def test_each_band_follows_its_own_previous_position():
+    first = floor_image()
+    second = floor_image()
+    for index, rows in enumerate(DEFAULT_BANDS):
+        # A line leaning right with distance; each band sees a patch 80 px left of it.
+        column = 300 + 20 * index
+        paint_line(first, column, band_slice(rows))
+        paint_line(second, column + 10, band_slice(rows))
+        paint_line(second, column - 70, band_slice(rows))
+    detector = LineDetector()
+    detector.detect(first)
+
+    detection = detector.detect(second)
+
+    assert centroids_px(detection) == pytest.approx(
+        [310 + 20 * index for index in range(len(DEFAULT_BANDS))])
+
+
+def test_line_jumping_farther_than_the_limit_is_rejected_then_found_again():
+    config = DetectorConfig()
+    jump_px = 0.3 * WIDTH_PX
+    assert jump_px - LINE_WIDTH_PX > config.max_stripe_jump_fraction * WIDTH_PX
+    detector = LineDetector(config)
+    detector.detect(vertical_line_image(200))
+    jumped = vertical_line_image(200 + round(jump_px))
+
+    rejected = detector.detect(jumped)
+    recovered = detector.detect(jumped)
+
+    assert not rejected.found
+    assert rejected.error == 0.0
+    assert rejected.confidence == 0.0
+    assert recovered.confidence == 1.0
+    assert recovered.nearest.centroid_x_px == pytest.approx(200 + round(jump_px))
+
+
+def test_line_moving_within_the_limit_is_followed():
+    config = DetectorConfig()
+    move_px = round(0.15 * WIDTH_PX)
+    assert move_px < config.max_stripe_jump_fraction * WIDTH_PX
+    detector = LineDetector(config)
+    detector.detect(vertical_line_image(200))
+    detection = detector.detect(vertical_line_image(200 + move_px))
+    assert detection.confidence == 1.0
+    assert detection.nearest.centroid_x_px == pytest.approx(200 + move_px)
+
+
+def test_band_rejecting_a_far_stripe_still_counts_its_pixels():
+    detector = LineDetector()
+    detector.detect(vertical_line_image(150))
+    detection = detector.detect(vertical_line_image(500))
+    assert not detection.bands[0].found
+    assert detection.bands[0].area_px == LINE_WIDTH_PX * (
+        DEFAULT_BANDS[0][1] - DEFAULT_BANDS[0][0])
+
+
+def test_far_bands_reject_another_line_on_the_other_side():
+    # The line leaves the image on the right in the near bands; the far bands see another
+    # line (the other leg of a hairpin) on the left.
+    config = DetectorConfig()
+    near_bands, far_bands = DEFAULT_BANDS[:3], DEFAULT_BANDS[3:]
+    image = floor_image()
+    for rows in near_bands:
+        paint_line(image, 610, band_slice(rows))
+    for rows in far_bands:
+        paint_line(image, 70, band_slice(rows))
+    assert 610 - 70 - LINE_WIDTH_PX > config.max_stripe_jump_fraction * WIDTH_PX
+
+    detection = LineDetector(config).detect(image)
+
+    assert [band_detection.found for band_detection in detection.bands] == [
+        True] * len(near_bands) + [False] * len(far_bands)
+    assert detection.confidence == pytest.approx(len(near_bands) / len(DEFAULT_BANDS))
+    assert detection.error == pytest.approx(expected_error(610))
+
+
+@pytest.mark.parametrize('gap_band', range(len(DEFAULT_BANDS)))
+def test_dash_gap_over_one_band_leaves_only_that_band_unseen(gap_band):
+    image = vertical_line_image(420)
+    top, bottom = DEFAULT_BANDS[gap_band]
+    image[top - 3:bottom + 3] = FLOOR_GREY
+
+    detection = LineDetector().detect(image)
+
+    seen = [band_detection.found for band_detection in detection.bands]
+    assert seen == [index != gap_band for index in range(len(DEFAULT_BANDS))]
+    assert detection.confidence == pytest.approx(
+        (len(DEFAULT_BANDS) - 1) / len(DEFAULT_BANDS))
+    assert detection.error == pytest.approx(expected_error(420))
+    assert detection.nearest is detection.bands[1 if gap_band == 0 else 0]
+
+
+def test_dashes_keep_being_followed_across_frames():
+    detector = LineDetector()
+    for frame in range(len(DEFAULT_BANDS)):
+        image = vertical_line_image(250 + 5 * frame)
+        image[band_slice(DEFAULT_BANDS[frame])] = FLOOR_GREY
+        detection = detector.detect(image)
+        assert [band_detection.found for band_detection in detection.bands].count(False) == 1
+        assert detection.seen_bands[0].centroid_x_px == pytest.approx(250 + 5 * frame)
+
+
+def test_reset_forgets_where_the_line_was():
+    detector = LineDetector()
+    detector.detect(vertical_line_image(100))
+    assert detector.detect(lines_image(100, 330)).nearest.centroid_x_px == pytest.approx(100)
+
+    detector.reset()
+
+    assert detector.detect(lines_image(100, 330)).nearest.centroid_x_px == pytest.approx(330)
+
+
+def test_reset_before_any_image_is_harmless():
+    detector = LineDetector()
+    detector.reset()
+    assert detector.detect(vertical_line_image(200)).confidence == 1.0
+
+
+def test_new_image_size_forgets_where_the_line_was():
+    detector = LineDetector(DetectorConfig(min_area_px=1))
+    detector.detect(vertical_line_image(100))
+    # At 320x240 the centre is column 160: 165 is nearer it, 50 nearer the old 100.
+    detection = detector.detect(
+        paint_line(vertical_line_image(50, 240, 320, half_width_px=3), 165, half_width_px=3))
+    assert detection.nearest.centroid_x_px == pytest.approx(165)
+
+
+# Camera noise.
+
+def test_line_is_found_in_every_band_through_camera_noise():
+    generator = np.random.default_rng(NOISE_SEED)
+    for column in (CENTRE_COLUMN, 150, 500):
+        clean = LineDetector().detect(vertical_line_image(column))
+        noisy = LineDetector().detect(add_camera_noise(vertical_line_image(column), generator))
+        assert noisy.confidence == 1.0
+        assert centroids_px(noisy) == pytest.approx(
+            centroids_px(clean), abs=NOISY_CENTROID_TOLERANCE_PX)
+
+
+def test_noisy_bare_floor_has_no_stripes():
+    generator = np.random.default_rng(NOISE_SEED)
+    config = DetectorConfig()
+    detector = LineDetector(config)
+    for _ in range(5):
+        detection = detector.detect(add_camera_noise(floor_image(), generator))
+        assert not detection.found
+        assert all(band_detection.area_px < config.min_area_px
+                   for band_detection in detection.bands)
+
+
+# Image formats and sizes.
+
 def test_padded_step_image_gives_the_same_detection():
     image = vertical_line_image(451)
     row_bytes = WIDTH_PX * 3
@@ -192,7 +556,10 @@ def test_padded_step_image_gives_the_same_detection():
     padded_view = image_to_array(msg)
     assert not padded_view.flags.c_contiguous
 
-    assert LineDetector().detect(padded_view, 'bgr8') == LineDetector().detect(image)
+    detection = LineDetector().detect(padded_view, 'bgr8')
+
+    assert detection == LineDetector().detect(image)
+    assert detection.confidence == 1.0
 
 
 @pytest.mark.parametrize('encoding', CONVERSIONS_FROM_BGR)
@@ -200,7 +567,7 @@ def test_every_colour_encoding_gives_the_same_detection(encoding):
     image = vertical_line_image(151, rgb=YELLOWS_RGB['shaded'])
     converted = cv2.cvtColor(image, CONVERSIONS_FROM_BGR[encoding])
     detection = LineDetector().detect(converted, encoding)
-    assert detection.found
+    assert detection.confidence == 1.0
     assert detection == LineDetector().detect(image, 'bgr8')
 
 
@@ -213,10 +580,10 @@ def test_every_colour_encoding_through_a_message_gives_the_same_detection(encodi
 
 
 def test_mono8_image_has_no_colour_so_no_line():
-    grey = cv2.cvtColor(vertical_line_image(320), cv2.COLOR_BGR2GRAY)
+    grey = cv2.cvtColor(vertical_line_image(CENTRE_COLUMN), cv2.COLOR_BGR2GRAY)
     detection = LineDetector().detect(grey, 'mono8')
     assert not detection.found
-    assert detection.area_px == 0
+    assert all(band_detection.area_px == 0 for band_detection in detection.bands)
 
 
 @pytest.mark.parametrize('height, width', ((240, 320), (480, 640), (720, 1280), (61, 99)))
@@ -224,8 +591,8 @@ def test_mono8_image_has_no_colour_so_no_line():
 def test_normalised_error_does_not_depend_on_resolution(height, width, column_fraction):
     column = round(column_fraction * width)
     image = vertical_line_image(column, height, width, half_width_px=max(width // 90, 1))
-    detection = LineDetector().detect(image)
-    assert detection.found
+    detection = LineDetector(DetectorConfig(min_area_px=1)).detect(image)
+    assert detection.confidence == 1.0
     assert detection.image_width_px == width
     assert detection.error == pytest.approx(2 * column_fraction - 1, abs=1.0 / (width / 2))
 
@@ -236,40 +603,35 @@ def test_one_detector_handles_changing_resolutions():
         column = width // 4
         detection = detector.detect(vertical_line_image(column, height, width))
         assert detection.error == pytest.approx(expected_error(column, width))
-        assert detector.last_mask.shape == (detection.band_bottom_px - detection.band_top_px,
-                                            width)
+        searched_rows = sum(band_detection.bottom_px - band_detection.top_px
+                            for band_detection in detection.bands)
+        assert detector.last_mask.shape == (searched_rows, width)
 
 
-@pytest.mark.parametrize('config, height, expected_rows', (
-    (DetectorConfig(band_center_fraction=0.99), HEIGHT_PX, (465, 480)),
-    (DetectorConfig(band_center_fraction=0.01, band_height_px=30), HEIGHT_PX, (0, 19)),
-    (DetectorConfig(band_height_px=1000), HEIGHT_PX, (0, HEIGHT_PX)),
-    (DetectorConfig(band_height_px=1), HEIGHT_PX, (360, 361)),
-    (DetectorConfig(), 1, (0, 1)),
-    (DetectorConfig(), 3, (0, 3)),
-))
-def test_band_is_clipped_to_the_image(config, height, expected_rows):
-    top, bottom = expected_rows
-    assert band_rows(height, config) == expected_rows
-    detection = LineDetector(DetectorConfig(
-        band_center_fraction=config.band_center_fraction,
-        band_height_px=config.band_height_px, min_area_px=1)).detect(
-            vertical_line_image(480, height=height))
-    assert detection.found
-    assert (detection.band_top_px, detection.band_bottom_px) == expected_rows
-    assert detection.area_px == (bottom - top) * (2 * LINE_HALF_WIDTH_PX + 1)
-
-
-def test_last_mask_is_the_band_mask():
+def test_last_mask_stacks_the_band_rows_nearest_first():
     detector = LineDetector()
     assert detector.last_mask is None
-    detection = detector.detect(vertical_line_image(100))
+    image = floor_image()
+    stripe_columns = [100 + 20 * index for index in range(len(DEFAULT_BANDS))]
+    for rows, column in zip(DEFAULT_BANDS, stripe_columns):
+        paint_line(image, column, band_slice(rows))
+
+    detection = detector.detect(image)
+
     mask = detector.last_mask
+    assert detection.confidence == 1.0
     assert mask.dtype == np.uint8
-    assert mask.shape == (20, WIDTH_PX)
-    assert np.count_nonzero(mask) == detection.area_px
+    assert mask.shape == (sum(bottom - top for top, bottom in DEFAULT_BANDS), WIDTH_PX)
     assert set(np.unique(mask)) == {0, 255}
-    assert np.all(mask[:, 100 - LINE_HALF_WIDTH_PX:100 + LINE_HALF_WIDTH_PX + 1] == 255)
+    assert np.count_nonzero(mask) == detection.area_px
+    first_row = 0
+    for (top, bottom), column in zip(DEFAULT_BANDS, stripe_columns):
+        band_mask = mask[first_row:first_row + bottom - top]
+        first_row += bottom - top
+        stripe = slice(column - LINE_HALF_WIDTH_PX, column + LINE_HALF_WIDTH_PX + 1)
+        np.testing.assert_array_equal(np.flatnonzero(band_mask.any(axis=0)),
+                                      np.arange(stripe.start, stripe.stop))
+        assert np.all(band_mask[:, stripe] == 255)
 
 
 def test_detect_does_not_modify_the_image():
@@ -284,11 +646,15 @@ def test_detect_does_not_modify_the_image():
     (np.zeros((4, 4), np.uint8), 'bgr8'),
     (np.zeros((4, 4, 3), np.float32), 'bgr8'),
     (np.zeros((4, 4, 3), np.uint8), 'hsv8'),
+    (np.zeros((4, 4), np.float32), '32FC1'),
+    (np.zeros((0, 4, 3), np.uint8), 'bgr8'),
 ))
 def test_detect_rejects_images_not_matching_the_encoding(image, encoding):
     with pytest.raises(ImageConversionError):
         LineDetector().detect(image, encoding)
 
+
+# Configuration.
 
 def test_detector_keeps_its_config():
     config = DetectorConfig(hue_min=25)
@@ -298,7 +664,7 @@ def test_detector_keeps_its_config():
 @pytest.mark.parametrize('fields, error_type, message_part', (
     ({'hue_max': 255}, ValueError, r'hue_max must be in \[0, 179\]'),
     ({'hue_min': -1}, ValueError, r'hue_min must be in \[0, 179\]'),
-    ({'hue_min': 41}, ValueError, 'hue_min 41 must not exceed hue_max 40'),
+    ({'hue_min': 41, 'hue_max': 40}, ValueError, 'hue_min 41 must not exceed hue_max 40'),
     ({'saturation_max': 256}, ValueError, r'saturation_max must be in \[0, 255\]'),
     ({'saturation_min': 200, 'saturation_max': 100}, ValueError, 'must not exceed'),
     ({'value_min': -5}, ValueError, r'value_min must be in \[0, 255\]'),
@@ -307,8 +673,16 @@ def test_detector_keeps_its_config():
     ({'band_center_fraction': 1.0}, ValueError, 'strictly between 0 and 1'),
     ({'band_center_fraction': 1.5}, ValueError, 'strictly between 0 and 1'),
     ({'band_center_fraction': math.nan}, ValueError, 'strictly between 0 and 1'),
+    ({'band_spacing_fraction': -0.1}, ValueError, 'at least 0 and less than 1'),
+    ({'band_spacing_fraction': 1.0}, ValueError, 'at least 0 and less than 1'),
+    ({'band_spacing_fraction': math.nan}, ValueError, 'at least 0 and less than 1'),
+    ({'max_stripe_jump_fraction': 0.0}, ValueError, 'above 0 and at most 1'),
+    ({'max_stripe_jump_fraction': 1.01}, ValueError, 'above 0 and at most 1'),
+    ({'max_stripe_jump_fraction': math.nan}, ValueError, 'above 0 and at most 1'),
+    ({'band_count': 0}, ValueError, 'band_count must be at least 1'),
     ({'band_height_px': 0}, ValueError, 'band_height_px must be at least 1'),
     ({'min_area_px': 0}, ValueError, 'min_area_px must be at least 1'),
+    ({'band_count': 2.0}, TypeError, 'band_count must be an integer'),
     ({'band_height_px': 20.0}, TypeError, 'band_height_px must be an integer'),
     ({'hue_min': 20.5}, TypeError, 'hue_min must be an integer'),
     ({'min_area_px': True}, TypeError, 'min_area_px must be an integer'),
@@ -318,35 +692,83 @@ def test_detector_config_rejects_invalid_values(fields, error_type, message_part
         DetectorConfig(**fields)
 
 
-def test_detector_config_defaults_are_the_documented_ones():
-    assert DetectorConfig() == DetectorConfig(
-        hue_min=20, hue_max=40, saturation_min=100, saturation_max=255, value_min=50,
-        value_max=255, band_center_fraction=0.75, band_height_px=20, min_area_px=20)
+@pytest.mark.parametrize('fields', (
+    {'band_spacing_fraction': 0.0},
+    {'max_stripe_jump_fraction': 1.0},
+    {'band_count': np.int64(3), 'min_area_px': np.int32(1)},
+    {'hue_min': 0, 'hue_max': 179, 'value_min': 0, 'value_max': 255},
+))
+def test_detector_config_accepts_boundary_values(fields):
+    config = DetectorConfig(**fields)
+    assert LineDetector(config).detect(vertical_line_image(CENTRE_COLUMN)).found
 
 
-def test_draw_debug_marks_a_found_line_and_keeps_the_input():
+# Detection's summary of its bands.
+
+def test_detection_sums_up_its_bands():
+    detection = Detection(bands=(
+        band_result(False, math.nan, 100, area_px=7),
+        band_result(True, 480.0, 80, area_px=150),
+        band_result(False, math.nan, 60, area_px=0),
+        band_result(True, 160.0, 40, area_px=90),
+    ), image_width_px=WIDTH_PX, image_height_px=HEIGHT_PX)
+    assert detection.found
+    assert detection.nearest is detection.bands[1]
+    assert detection.seen_bands == (detection.bands[1], detection.bands[3])
+    assert detection.error == pytest.approx(0.5)
+    assert detection.confidence == pytest.approx(0.5)
+    assert detection.area_px == 240
+
+
+def test_nothing_seen_is_a_lost_line():
+    detection = Detection.nothing_seen(WIDTH_PX, HEIGHT_PX)
+    assert detection.bands == ()
+    assert not detection.found
+    assert detection.nearest is None
+    assert detection.error == 0.0
+    assert detection.confidence == 0.0
+    assert detection.area_px == 0
+    assert (detection.image_width_px, detection.image_height_px) == (WIDTH_PX, HEIGHT_PX)
+
+
+# The debug overlay.
+
+def test_draw_debug_marks_every_seen_band_and_keeps_the_input():
     image = vertical_line_image(420)
     original = image.copy()
     detection = LineDetector().detect(image)
+
     debug = draw_debug(image, detection)
+
     np.testing.assert_array_equal(image, original)
     assert debug.shape == image.shape
     assert debug.dtype == np.uint8
-    centroid = (round(detection.centroid_y_px), round(detection.centroid_x_px))
-    assert tuple(debug[centroid]) == (0, 0, 255)
-    assert tuple(debug[detection.band_top_px, 0]) != (FLOOR_GREY,) * 3
-    assert tuple(debug[0, WIDTH_PX // 2]) != (FLOOR_GREY,) * 3
+    assert debug.flags.c_contiguous
+    for band_detection in detection.bands:
+        centroid = (round(band_detection.centroid_y_px), round(band_detection.centroid_x_px))
+        assert tuple(debug[centroid]) == RED_BGR
+        assert tuple(debug[band_detection.top_px, 0]) == GREEN_BGR
+        assert tuple(debug[band_detection.bottom_px - 1, WIDTH_PX - 1]) == GREEN_BGR
+    assert tuple(debug[0, WIDTH_PX // 2]) == BLUE_BGR
 
 
-def test_draw_debug_marks_a_lost_line_without_a_centroid():
+def test_draw_debug_marks_a_lost_line_without_centroids():
     image = floor_image()
-    detection = LineDetector().detect(image)
-    debug = draw_debug(image, detection)
-    found_debug = draw_debug(image, Detection(
-        found=True, centroid_x_px=320.0, centroid_y_px=360.0, error=0.0, area_px=300,
-        band_top_px=350, band_bottom_px=370, image_width_px=WIDTH_PX))
-    assert not np.any(np.all(debug == (0, 0, 255), axis=2)[355:366, 310:331])
-    assert not np.array_equal(debug, found_debug)
+    lost = LineDetector().detect(image)
+    found = Detection(bands=tuple(
+        BandDetection(found=True, centroid_x_px=320.0, centroid_y_px=(top + bottom) / 2,
+                      area_px=300, top_px=top, bottom_px=bottom)
+        for top, bottom in DEFAULT_BANDS), image_width_px=WIDTH_PX, image_height_px=HEIGHT_PX)
+
+    debug = draw_debug(image, lost)
+    found_debug = draw_debug(image, found)
+
+    red = np.all(debug == RED_BGR, axis=2)
+    for top, bottom in DEFAULT_BANDS:
+        assert not np.any(red[top - 5:bottom + 5, 310:331])
+        assert tuple(debug[top, 0]) == GREEN_BGR
+    # The text at the top differs: "LINE LOST" against the error and confidence.
+    assert not np.array_equal(debug[:TEXT_ROWS_PX], found_debug[:TEXT_ROWS_PX])
     assert not np.array_equal(debug, image)
 
 
