@@ -197,7 +197,7 @@ def band_rows(image_height_px, config):
     bands = []
     for index in range(config.band_count):
         fraction = config.band_center_fraction - index * config.band_spacing_fraction
-        # Rounded before truncating: 0.95 - 4 * 0.125 is 0.44999999999999996 in floating point.
+        # Rounded before truncating: 0.95 - 4 * 0.125 is 0.44999999999999996 in binary.
         center_row = int(round(image_height_px * fraction, 6))
         top = max(center_row - config.band_height_px // 2, 0)
         bottom = min(center_row - config.band_height_px // 2 + config.band_height_px,
@@ -227,12 +227,11 @@ class LineDetector:
     All bands are converted to HSV and thresholded in one go. In each band the matching
     columns form stripes; the detector takes the stripe nearest to where it expects the line:
     where that band saw it in the previous frame, else where the next nearer band that saw it
-    in this frame did. A stripe farther than ``max_stripe_jump_fraction`` of the width from that is not
-    the line (a yellow patch beside it, the other leg of a hairpin, the other branch at a
-    crossing), so the band saw nothing. With no expectation at all (the line not seen
-    before) the stripe nearest the image centre is taken. Stripes smaller than
-    ``min_area_px`` are noise.
-    The buffers are reused between calls of the same image size.
+    in this frame did. A stripe farther than ``max_stripe_jump_fraction`` of the width from
+    that is not the line (a yellow patch beside it, the other leg of a hairpin, the other
+    branch at a crossing), so the band saw nothing. With no expectation at all (the line not
+    seen before) the stripe nearest the image centre is taken. Stripes smaller than
+    ``min_area_px`` are noise. The buffers are reused between calls of the same image size.
     """
 
     def __init__(self, config=DetectorConfig()):
