@@ -1,10 +1,22 @@
 """
 Turn line detections into velocity commands.
 
-A proportional steering law, as in "Programming Robots with ROS" (ch. 12): drive at a constant
-speed and turn against the line's offset. Unlike the book it says what to do when the line is
-lost: stop, or rotate in place towards the side where the line was last seen. It never drives
-forward blind.
+Two steering laws, chosen by ``ControllerConfig.steering_law``:
+
+- ``'path'`` (the default): the stripes the detector saw in several bands, projected onto the
+  floor, form a polyline ahead of the robot. The robot steers along the arc that reaches its
+  point ``look_ahead_m`` away (pure pursuit: exact on steady bends, no offset needed to
+  turn), turns on the spot towards a point far to the side (a sharp corner), and plans its
+  speed on the sharpest arc to any of the points (a lateral acceleration bound, so it slows
+  before a bend, not in it) and on how many bands see the line, within acceleration limits
+  matched to the robot.
+- ``'proportional'``: the book's law ("Programming Robots with ROS", ch. 12): a constant speed
+  and w = -gain * error of the nearest band's normalised offset.
+
+With either law, a line lost for a moment (a gap in a dashed line) is driven through on the
+last command for ``line_memory_s``; a line lost for longer makes the robot stop, or rotate
+in place towards the side where it was last seen. A line found again is trusted after
+``frames_to_trust`` frames in a row. The robot never drives forward without a line.
 
 Angular velocities follow ROS REP-103: positive is counter-clockwise, i.e. a left turn.
 """
@@ -12,16 +24,19 @@ Angular velocities follow ROS REP-103: positive is counter-clockwise, i.e. a lef
 from dataclasses import dataclass
 import math
 
-LOST_LINE_BEHAVIOURS = ('search', 'stop')
+import numpy as np
 
-# Search turn direction (sign of the angular velocity) for the sign of the last seen error.
-# A line last seen right of centre (error > 0) is searched for by turning right (clockwise,
-# negative). With no side preference (never seen, or last seen dead centre) turn left.
-_SEARCH_DIRECTION_BY_ERROR_SIGN = {
-    1: -1.0,
-    -1: 1.0,
-    0: 1.0,
-}
+STEERING_LAWS = ('path', 'proportional')
+LOST_LINE_BEHAVIOURS = ('search', 'stop')
+# What the controller is doing, as reported on the follower's status topic.
+STATE_WAITING = 'waiting'
+STATE_TRACKING = 'tracking'
+STATE_COASTING = 'coasting'
+STATE_ACQUIRING = 'acquiring'
+STATE_LOST = 'lost'
+# Longest time step between frames that the acceleration limits honour; a longer pause (a
+# paused simulation, a camera hiccup) starts again from the limits, not from a huge step.
+MAX_TIME_STEP_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -33,33 +48,151 @@ class VelocityCommand:
 
 
 @dataclass(frozen=True)
+class PathEstimate:
+    """
+    The line ahead of the robot, in the robot's frame (x forward, y left), from floor points.
+
+    ``look_ahead_x_m`` and ``look_ahead_y_m`` are the point steered for; ``heading_rad`` is
+    the direction of the line through the points (positive: to the left of the robot's
+    heading); ``sharpest_curvature_per_m`` is the largest curvature of an arc from the robot
+    to any of the points (positive: bending left), what the speed is planned for.
+    """
+
+    look_ahead_x_m: float
+    look_ahead_y_m: float
+    heading_rad: float
+    sharpest_curvature_per_m: float
+
+    @property
+    def bearing_rad(self):
+        """Return the direction of the look-ahead point from the robot's heading."""
+        return math.atan2(self.look_ahead_y_m, self.look_ahead_x_m)
+
+    @property
+    def pursuit_curvature_per_m(self):
+        """Return the curvature of the arc from the robot, tangent to it, to the point."""
+        return pursuit_curvature(self.look_ahead_x_m, self.look_ahead_y_m)
+
+
+def pursuit_curvature(x_m, y_m):
+    """
+    Return the curvature of the arc that leaves the robot straight ahead and reaches a point.
+
+    This is pure pursuit: steering along it brings the robot onto a line through the point.
+    On a circle of any radius that the robot already drives, the point ahead on the circle
+    gives exactly the circle's curvature, so steady bends are followed without offset.
+
+    :param x_m: forward coordinate of the point (array-like).
+    :param y_m: leftward coordinate of the point (array-like).
+    :return: curvature in 1/m, positive to the left.
+    """
+    return 2.0 * y_m / (x_m * x_m + y_m * y_m)
+
+
+def _segment_point_at_distance(near, far, distance_m):
+    """Return the point of the segment near-far at a distance from the origin between theirs."""
+    step = far - near
+    # |near + t * step| = distance: a quadratic in t with one root in [0, 1].
+    a = float(step @ step)
+    b = 2.0 * float(near @ step)
+    c = float(near @ near) - distance_m * distance_m
+    t = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a)
+    return near + min(max(t, 0.0), 1.0) * step
+
+
+def estimate_path(floor_xy_m, look_ahead_m):
+    """
+    Find the point to steer for, and what lies ahead, from the floor points the bands saw.
+
+    The look-ahead point is where the polyline through the points, nearest first, is
+    ``look_ahead_m`` from the robot: the nearest point if all are farther, the farthest if
+    all are nearer.
+
+    :param floor_xy_m: (n, 2) array of floor points (x forward, y left, metres), nearest
+        first, n >= 1, at distinct places.
+    :param look_ahead_m: the distance from the robot of the point to steer for.
+    :return: the PathEstimate.
+    """
+    points = np.asarray(floor_xy_m, dtype=float).reshape(-1, 2)
+    distances_m = np.hypot(points[:, 0], points[:, 1])
+    beyond = np.flatnonzero(distances_m >= look_ahead_m)
+    if len(beyond) == 0:
+        look_ahead = points[-1]
+    elif beyond[0] == 0:
+        look_ahead = points[0]
+    else:
+        look_ahead = _segment_point_at_distance(points[beyond[0] - 1], points[beyond[0]],
+                                                look_ahead_m)
+    if len(points) >= 2:
+        # The principal direction of the points, pointing from the nearest to the farthest.
+        centred = points - points.mean(axis=0)
+        direction = np.linalg.svd(centred, full_matrices=False)[2][0]
+        if np.dot(direction, points[-1] - points[0]) < 0.0:
+            direction = -direction
+        heading_rad = math.atan2(direction[1], direction[0])
+    else:
+        heading_rad = math.atan2(points[0, 1], points[0, 0])
+    curvatures = pursuit_curvature(points[:, 0], points[:, 1])
+    sharpest = float(curvatures[np.argmax(np.abs(curvatures))])
+    return PathEstimate(float(look_ahead[0]), float(look_ahead[1]), heading_rad, sharpest)
+
+
+def _check_number(name, value, minimum=0.0):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f'{name} must be a number, got {value!r}.')
+    if not math.isfinite(value) or value < minimum:
+        raise ValueError(f'{name} must be finite and at least {minimum:g}, got {value}.')
+
+
+@dataclass(frozen=True)
 class ControllerConfig:
     """
     Gains, limits and lost-line behaviour of the line-following controller.
 
-    The book's law w = -(cx - w/2) / 100 at a 640-pixel-wide image is a gain of 3.2 rad/s
-    per unit of normalised error.
+    The defaults are followbot's path law, tuned on the scorecard. The book's law is
+    ``steering_law='proportional'``, ``linear_speed_mps=0.2`` and ``angular_gain_radps=3.2``:
+    w = -(cx - w/2) / 100 at a 640-pixel-wide image is 3.2 rad/s per unit of normalised error.
     """
 
-    linear_speed_mps: float = 0.2
+    steering_law: str = 'path'
+    linear_speed_mps: float = 0.7
+    min_linear_speed_mps: float = 0.05
     angular_gain_radps: float = 3.2
-    max_angular_speed_radps: float = 1.5
+    look_ahead_m: float = 0.5
+    bearing_gain_radps: float = 2.0
+    confidence_for_full_speed: float = 0.5
+    max_lateral_acceleration_mps2: float = 0.6
+    max_linear_acceleration_mps2: float = 1.0
+    max_angular_acceleration_radps2: float = 8.0
+    max_angular_speed_radps: float = 3.0
+    frames_to_trust: int = 2
+    line_memory_s: float = 0.3
     lost_line_behaviour: str = 'search'
-    search_angular_speed_radps: float = 0.5
+    search_angular_speed_radps: float = 1.0
 
     def __post_init__(self):
-        """Reject negative or non-finite speeds and gains and unknown behaviours."""
-        for name in ('linear_speed_mps', 'angular_gain_radps', 'max_angular_speed_radps',
-                     'search_angular_speed_radps'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise TypeError(f'{name} must be a number, got {value!r}.')
-            if not math.isfinite(value) or value < 0.0:
-                raise ValueError(f'{name} must be finite and non-negative, got {value}.')
-        if self.lost_line_behaviour not in LOST_LINE_BEHAVIOURS:
+        """Reject negative or non-finite numbers and unknown laws and behaviours."""
+        for name in ('linear_speed_mps', 'min_linear_speed_mps', 'angular_gain_radps',
+                     'look_ahead_m', 'bearing_gain_radps', 'max_angular_speed_radps',
+                     'line_memory_s', 'search_angular_speed_radps'):
+            _check_number(name, getattr(self, name))
+        for name in ('confidence_for_full_speed', 'max_lateral_acceleration_mps2',
+                     'max_linear_acceleration_mps2',
+                     'max_angular_acceleration_radps2'):
+            _check_number(name, getattr(self, name), minimum=1e-3)
+        if isinstance(self.frames_to_trust, bool) or not isinstance(self.frames_to_trust, int):
+            raise TypeError(f'frames_to_trust must be an integer, got {self.frames_to_trust!r}.')
+        if self.frames_to_trust < 1:
+            raise ValueError(f'frames_to_trust must be at least 1, got {self.frames_to_trust}.')
+        if self.min_linear_speed_mps > self.linear_speed_mps:
             raise ValueError(
-                f'lost_line_behaviour must be one of {", ".join(LOST_LINE_BEHAVIOURS)}, '
-                f'got {self.lost_line_behaviour!r}.')
+                f'min_linear_speed_mps {self.min_linear_speed_mps} must not exceed '
+                f'linear_speed_mps {self.linear_speed_mps}.')
+        for name, value, allowed in (
+                ('steering_law', self.steering_law, STEERING_LAWS),
+                ('lost_line_behaviour', self.lost_line_behaviour, LOST_LINE_BEHAVIOURS)):
+            if value not in allowed:
+                raise ValueError(f'{name} must be one of {", ".join(allowed)}, got {value!r}.')
 
 
 def _sign(value):
@@ -67,33 +200,52 @@ def _sign(value):
     return (value > 0) - (value < 0)
 
 
+def _clamp(value, low, high):
+    return min(max(value, low), high)
+
+
 class LineFollowingController:
     """
-    Steer towards the detected line; stop or search for it when it is lost.
+    Steer along the detected line; coast through short gaps; stop or search when it is lost.
 
-    While the line is seen the robot drives at ``linear_speed_mps`` and turns at
-    ``-angular_gain_radps * error``, clamped to ``max_angular_speed_radps``: a line right of
-    centre (error > 0) gives a right turn (negative yaw rate). The controller remembers on
-    which side of centre the line was last seen, for the 'search' behaviour.
+    Call :meth:`update` once per camera frame with the frame's time. The controller keeps
+    its last command (for the acceleration limits and for coasting), the side on which the
+    line was last seen (for searching), and the last PathEstimate (for the status topic).
     """
 
     def __init__(self, config=ControllerConfig()):
         """
         Make a controller that has not yet seen the line.
 
-        :param config: gains, limits and lost-line behaviour; the defaults are the book's.
+        :param config: gains, limits and lost-line behaviour.
         """
         self._config = config
-        self._lost_line_commands = {
-            'stop': self.stop_command,
-            'search': self._search_command,
-        }
-        self._last_error_sign = 0
+        self.reset()
 
     @property
     def config(self):
-        """Return the ControllerConfig this controller was made with."""
+        """Return the ControllerConfig this controller uses."""
         return self._config
+
+    @config.setter
+    def config(self, config):
+        """Use new gains and limits from the next frame on, keeping what was seen."""
+        self._config = config
+
+    @property
+    def state(self):
+        """Return what the controller is doing: waiting, tracking, coasting, acquiring, lost."""
+        return self._state
+
+    @property
+    def path_estimate(self):
+        """Return the PathEstimate of the last frame that had one, or None."""
+        return self._path_estimate
+
+    @property
+    def last_command(self):
+        """Return the last command returned by :meth:`update`."""
+        return self._command
 
     @staticmethod
     def stop_command():
@@ -101,31 +253,116 @@ class LineFollowingController:
         return VelocityCommand(linear_mps=0.0, angular_radps=0.0)
 
     def reset(self):
-        """Forget the side where the line was last seen, as if it had never been seen."""
-        self._last_error_sign = 0
+        """Forget everything seen and commanded, as if just started."""
+        self._state = STATE_WAITING
+        self._last_side = 0
+        self._seen_streak = 0
+        self._last_seen_s = -math.inf
+        self._time_s = None
+        self._command = self.stop_command()
+        self._path_estimate = None
 
-    def update(self, detection):
+    def update(self, detection, time_s, floor_xy_m=None):
         """
-        Return the velocity command for one detection.
+        Return the velocity command for one camera frame.
 
-        :param detection: a line_detector.Detection; only ``found`` and ``error`` are used.
-            A found detection with a non-finite error counts as lost.
-        :return: a VelocityCommand. While the line is lost the linear speed is always 0:
-            'stop' stops, 'search' rotates in place at ``search_angular_speed_radps``
-            towards the side where the line was last seen (left if it has no side).
+        :param detection: a line_detector.Detection of the frame.
+        :param time_s: the frame's time in seconds (its stamp), for the acceleration limits
+            and the line memory.
+        :param floor_xy_m: for the 'path' law, an (n, 2) array of the floor points (x forward,
+            y left, metres) of the n bands that saw the line, nearest first; None when the
+            camera geometry is not known yet; the 'path' law treats None or no points as no
+            line.
+        :return: a VelocityCommand. Without a trusted line the linear speed is never
+            positive except while coasting through a short gap on the last command.
         """
-        if not (detection.found and math.isfinite(detection.error)):
-            return self._lost_line_commands[self._config.lost_line_behaviour]()
-        self._last_error_sign = _sign(detection.error)
-        limit = self._config.max_angular_speed_radps
-        angular_radps = -self._config.angular_gain_radps * detection.error
-        return VelocityCommand(
-            linear_mps=self._config.linear_speed_mps,
-            angular_radps=min(max(angular_radps, -limit), limit))
+        config = self._config
+        dt_s = (0.0 if self._time_s is None
+                else _clamp(time_s - self._time_s, 0.0, MAX_TIME_STEP_S))
+        if self._time_s is not None and time_s < self._time_s:
+            # Time went backwards (a restarted simulation, a looped bag): what was seen
+            # before is not recent.
+            self._last_seen_s = -math.inf
+        self._time_s = time_s
+        target = None
+        if detection.found and (config.steering_law == 'proportional'
+                                or (floor_xy_m is not None and len(floor_xy_m) > 0)):
+            self._seen_streak += 1
+            trusted = (self._state in (STATE_TRACKING, STATE_COASTING)
+                       or self._seen_streak >= config.frames_to_trust)
+            if trusted:
+                target = (self._proportional_target(detection)
+                          if config.steering_law == 'proportional'
+                          else self._path_target(floor_xy_m, detection.confidence))
+                self._state = STATE_TRACKING
+                self._last_seen_s = time_s
+                self._last_side = _sign(target.angular_radps) or self._last_side
+            else:
+                self._state = STATE_ACQUIRING
+        else:
+            self._seen_streak = 0
+            if (self._state in (STATE_TRACKING, STATE_COASTING)
+                    and time_s - self._last_seen_s <= config.line_memory_s):
+                self._state = STATE_COASTING
+                target = self._command
+            elif self._state != STATE_WAITING or detection.bands:
+                self._state = STATE_LOST
+        if target is None:
+            target = self._lost_line_target()
+        self._command = self._limit(target, dt_s)
+        return self._command
 
-    def _search_command(self):
-        """Return a rotation in place towards the side where the line was last seen."""
-        direction = _SEARCH_DIRECTION_BY_ERROR_SIGN[self._last_error_sign]
-        return VelocityCommand(
-            linear_mps=0.0,
-            angular_radps=direction * self._config.search_angular_speed_radps)
+    def _proportional_target(self, detection):
+        config = self._config
+        self._path_estimate = None
+        return VelocityCommand(config.linear_speed_mps,
+                               -config.angular_gain_radps * detection.error)
+
+    def _path_target(self, floor_xy_m, confidence):
+        config = self._config
+        estimate = estimate_path(floor_xy_m, config.look_ahead_m)
+        self._path_estimate = estimate
+        steering_per_m = estimate.pursuit_curvature_per_m
+        # Full speed while enough of the bands see the line; slower as fewer do.
+        speed_mps = config.linear_speed_mps * min(
+            1.0, confidence / config.confidence_for_full_speed)
+        bend_per_m = max(abs(estimate.sharpest_curvature_per_m), abs(steering_per_m))
+        if bend_per_m > 0.0:
+            speed_mps = min(speed_mps,
+                            math.sqrt(config.max_lateral_acceleration_mps2 / bend_per_m),
+                            config.max_angular_speed_radps / bend_per_m)
+        speed_mps = max(speed_mps, config.min_linear_speed_mps)
+        angular_radps = speed_mps * steering_per_m
+        # A point far to the side (a sharp corner) is turned to at once, not on a wide arc
+        # that would lose it from the camera's view.
+        pivot_radps = config.bearing_gain_radps * estimate.bearing_rad
+        if abs(pivot_radps) > abs(angular_radps):
+            angular_radps = pivot_radps
+            speed_mps = max(min(speed_mps,
+                                config.max_lateral_acceleration_mps2 / abs(angular_radps)),
+                            config.min_linear_speed_mps)
+        return VelocityCommand(speed_mps, angular_radps)
+
+    def _lost_line_target(self):
+        config = self._config
+        if config.lost_line_behaviour == 'stop' or self._state == STATE_WAITING:
+            return self.stop_command()
+        # Towards the side the line was last steered to; left when it has no side.
+        direction = self._last_side or 1
+        return VelocityCommand(0.0, direction * config.search_angular_speed_radps)
+
+    def _limit(self, target, dt_s):
+        config = self._config
+        previous = self._command
+        linear_step = config.max_linear_acceleration_mps2 * dt_s
+        angular_step = config.max_angular_acceleration_radps2 * dt_s
+        linear_mps = _clamp(target.linear_mps, previous.linear_mps - linear_step,
+                            previous.linear_mps + linear_step)
+        if target.linear_mps == 0.0:
+            # Stopping for a lost line is not delayed by the acceleration limit: driving on
+            # blind is worse than a hard stop.
+            linear_mps = 0.0
+        angular_mps = _clamp(target.angular_radps, previous.angular_radps - angular_step,
+                             previous.angular_radps + angular_step)
+        limit = config.max_angular_speed_radps
+        return VelocityCommand(linear_mps, _clamp(angular_mps, -limit, limit))

@@ -1,23 +1,35 @@
 """
 The follower node: camera image in, ``cmd_vel`` out.
 
-Wires :mod:`followbot.image_conversion`, :mod:`followbot.line_detector` and
-:mod:`followbot.controller` to ROS: every tunable number of the detector and the controller is a
-declared parameter, read once at start-up.
+Wires :mod:`followbot.image_conversion`, :mod:`followbot.line_detector`,
+:mod:`followbot.ground_projection` and :mod:`followbot.controller` to ROS. Every tunable number
+is a declared parameter with a description and a range, and can be changed while the node
+runs (``ros2 param set``): a new value is checked with the rest, refused with the reason if it
+cannot work, and used from the next frame on. ``~/status`` says what the follower sees and
+does, ``~/mask`` shows the pixels it took for the line, ``~/debug_image`` the camera view
+annotated.
 """
 
+import dataclasses
+import math
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from followbot.controller import (ControllerConfig, LineFollowingController,
-                                  LOST_LINE_BEHAVIOURS, VelocityCommand)
+                                  LOST_LINE_BEHAVIOURS, STATE_TRACKING, STEERING_LAWS,
+                                  VelocityCommand)
+from followbot.ground_projection import CameraGeometry
 from followbot.image_conversion import (array_to_image, image_to_array, ImageConversionError,
                                         to_bgr)
 from followbot.line_detector import Detection, DetectorConfig, draw_debug, LineDetector
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec, specs_for_config
 from geometry_msgs.msg import Twist
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CameraInfo, Image
 
 # Sensor-data QoS with depth 1: a controller must never work through a backlog of stale frames.
 IMAGE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
@@ -25,6 +37,7 @@ IMAGE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 # How long the final zero Twist may wait to be acknowledged by the subscribers at shutdown.
 STOP_ACK_TIMEOUT = Duration(seconds=0.5)
 IMAGE_WATCH_PERIOD_S = 0.1
+STATUS_NAME = 'followbot: follower'
 
 # Range and meaning (or, for a text, just the meaning) of each detector and controller
 # parameter. Defaults come from DetectorConfig and ControllerConfig, so the two can never
@@ -36,28 +49,97 @@ DETECTOR_PARAMETERS = {
     'saturation_max': (0, 255, 'Highest saturation of the line (0-255).'),
     'value_min': (0, 255, 'Lowest brightness (HSV value) of the line (0-255).'),
     'value_max': (0, 255, 'Highest brightness (HSV value) of the line (0-255).'),
-    'band_center_fraction': (0.0, 1.0, 'Centre row of the band searched for the line, as a '
-                             'fraction of the image height from the top.'),
-    'band_height_px': (1, 4096, 'Height of the band of rows searched for the line.'),
-    'min_area_px': (1, 1_000_000, 'Fewest line pixels in the band that count as a line.'),
+    'band_count': (1, 16, 'Number of bands of rows searched for the line, from the nearest '
+                   'upwards (1 = the book).'),
+    'band_center_fraction': (0.0, 1.0, 'Centre row of the nearest band, as a fraction of '
+                             'the image height from the top.'),
+    'band_spacing_fraction': (0.0, 1.0, 'Distance between band centres, as a fraction of '
+                              'the image height.'),
+    'band_height_px': (1, 4096, 'Height of each band of rows.'),
+    'min_area_px': (1, 1_000_000, 'Fewest pixels of one stripe in a band that count as '
+                    'the line; smaller specks are noise.'),
+    'max_stripe_jump_fraction': (0.001, 1.0, 'Farthest a stripe may lie from where a band '
+                                 'expects the line, as a fraction of the image width.'),
 }
 CONTROLLER_PARAMETERS = {
-    'linear_speed_mps': (0.0, 2.0, 'Forward speed while the line is seen.'),
-    'angular_gain_radps': (0.0, 50.0, 'Yaw rate per unit of normalised line offset '
-                           '(-1 at the left image edge, +1 at the right).'),
+    'steering_law': ('How to steer: ' + ' or '.join(STEERING_LAWS) + " ('path' steers along "
+                     'the arc to the line point look_ahead_m away on the floor and plans its '
+                     "speed on the bends ahead; 'proportional' is the book's "
+                     'w = -gain * error on the nearest band at a constant speed).'),
+    'linear_speed_mps': (0.0, 2.0, 'Forward speed on a straight line (path law), or always '
+                         '(proportional law).'),
+    'min_linear_speed_mps': (0.0, 2.0, 'Slowest forward speed while following (path law).'),
+    'angular_gain_radps': (0.0, 50.0, 'Proportional law: yaw rate per unit of normalised '
+                           'line offset (-1 at the left image edge, +1 at the right).'),
+    'look_ahead_m': (0.05, 5.0, 'Path law: distance from the robot of the line point it '
+                     'steers for.'),
+    'bearing_gain_radps': (0.0, 50.0, 'Path law: yaw rate per radian of bearing to that '
+                           'point when this turns faster than the arc to it (sharp corners).'),
+    'confidence_for_full_speed': (0.001, 1.0, 'Path law: fraction of the bands that must see '
+                                  'the line for full speed; fewer slow the robot down.'),
+    'max_lateral_acceleration_mps2': (0.001, 100.0, 'Path law: bends are driven no faster '
+                                      'than this sideways acceleration allows.'),
+    'max_linear_acceleration_mps2': (0.001, 100.0, 'Largest change of forward speed per '
+                                     'second (speeding up and slowing down).'),
+    'max_angular_acceleration_radps2': (0.001, 1000.0, 'Largest change of yaw rate per '
+                                        'second.'),
     'max_angular_speed_radps': (0.0, 10.0, 'Largest commanded yaw rate.'),
+    'frames_to_trust': (1, 100, 'Frames in a row that must show the line before a found '
+                        'line is followed again.'),
+    'line_memory_s': (0.0, 10.0, 'How long to drive on the last command when the line '
+                      'disappears (a gap in a dashed line) before it counts as lost.'),
     'search_angular_speed_radps': (0.0, 10.0, 'Yaw rate while searching for a lost line.'),
     'lost_line_behaviour': ('What to do when the line is lost: '
                             + ' or '.join(LOST_LINE_BEHAVIOURS)
                             + " ('search' turns toward the side it was last seen)."),
 }
+# Where the camera is on the robot: the path law needs it to put image points on the floor.
+# The defaults are the simulated TurtleBot 2's Kinect (followbot_sim's camera_pitch_deg).
+CAMERA_PARAMETERS = {
+    'camera_height_m': ParameterSpec(
+        0.30, 'Height of the camera above the floor.', 0.01, 10.0),
+    'camera_pitch_deg': ParameterSpec(
+        30.0, 'Downward tilt of the camera from the horizontal.', -90.0, 90.0),
+    'camera_forward_m': ParameterSpec(
+        0.10, "Distance of the camera ahead of the robot's centre (base_footprint).",
+        -5.0, 5.0),
+}
 FOLLOWER_PARAMETERS = {
     **specs_for_config(DetectorConfig(), DETECTOR_PARAMETERS),
     **specs_for_config(ControllerConfig(), CONTROLLER_PARAMETERS),
+    **CAMERA_PARAMETERS,
     'image_timeout_s': ParameterSpec(
         0.5, 'Stop when no camera image came for this long (node clock, so simulated time '
         'under use_sim_time).', 0.05, 10.0),
 }
+
+
+@dataclasses.dataclass(frozen=True)
+class FollowerSettings:
+    """Everything the follower's parameters decide, checked as a whole."""
+
+    detector: DetectorConfig
+    controller: ControllerConfig
+    camera_height_m: float
+    camera_pitch_deg: float
+    camera_forward_m: float
+    image_timeout_s: float
+
+    @classmethod
+    def from_parameters(cls, values: dict):
+        """
+        Build the settings from parameter values.
+
+        :param values: parameter name -> value, for every follower parameter.
+        :return: the settings.
+        :raises ValueError: if the values cannot work together (hue_min above hue_max, ...).
+        :raises TypeError: if a value has the wrong type.
+        """
+        return cls(
+            detector=DetectorConfig(**{name: values[name] for name in DETECTOR_PARAMETERS}),
+            controller=ControllerConfig(
+                **{name: values[name] for name in CONTROLLER_PARAMETERS}),
+            **{name: values[name] for name in (*CAMERA_PARAMETERS, 'image_timeout_s')})
 
 
 class FollowerNode(Node):
@@ -71,73 +153,207 @@ class FollowerNode(Node):
             ``parameter_overrides``, ...).
         """
         super().__init__('follower', **kwargs)
-        parameters = declare_parameters(self, FOLLOWER_PARAMETERS)
-        self._detector = LineDetector(DetectorConfig(
-            **{name: parameters[name] for name in DETECTOR_PARAMETERS}))
-        self._controller = LineFollowingController(ControllerConfig(
-            **{name: parameters[name] for name in CONTROLLER_PARAMETERS}))
-        self._image_timeout_s = parameters['image_timeout_s']
+        self._parameter_values = declare_parameters(self, FOLLOWER_PARAMETERS)
+        self._settings = FollowerSettings.from_parameters(self._parameter_values)
+        self._detector = LineDetector(self._settings.detector)
+        self._controller = LineFollowingController(self._settings.controller)
+        self._pending_settings = None
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
 
+        self._camera_matrix = None
+        self._camera_geometry = None
         self._cmd_vel_publisher = self.create_publisher(Twist, 'cmd_vel', 10)
         self._debug_image_publisher = self.create_publisher(Image, '~/debug_image', 1)
+        self._mask_publisher = self.create_publisher(Image, '~/mask', 1)
+        self._status_publisher = self.create_publisher(DiagnosticArray, '~/status', 10)
         self._image_subscription = self.create_subscription(
             Image, 'camera/rgb/image_raw', self.image_callback, IMAGE_QOS)
+        self._camera_info_subscription = self.create_subscription(
+            CameraInfo, 'camera/rgb/camera_info', self.camera_info_callback, IMAGE_QOS)
         self._image_watch_timer = self.create_timer(IMAGE_WATCH_PERIOD_S,
                                                     self.image_watch_callback)
         self._last_image_time = self.get_clock().now()
         self._waiting_for_images = True
         self._reported_errors = set()
         self._line_was_found = None
+        self._frames = 0
+        self._frames_line_lost = 0
+        self._recoveries = 0
+        self._mask_frame = None
         self.get_logger().info(
             f'Following the line on {self._image_subscription.topic_name}, commanding '
             f'{self._cmd_vel_publisher.topic_name}.')
+
+    @property
+    def line_statistics(self) -> dict:
+        """
+        Return the counts of camera frames, frames without the line, and recoveries.
+
+        :return: ``frames``, ``frames_line_lost`` and ``recoveries`` (lost, then found again).
+        """
+        return {'frames': self._frames, 'frames_line_lost': self._frames_line_lost,
+                'recoveries': self._recoveries}
+
+    def _check_parameters(self, parameters: list) -> SetParametersResult:
+        # rclpy has already checked each value's type and range; this checks them together.
+        values = dict(self._parameter_values)
+        values.update({parameter.name: parameter.value for parameter in parameters})
+        try:
+            self._pending_settings = FollowerSettings.from_parameters(values)
+        except (TypeError, ValueError) as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: list) -> None:
+        self._parameter_values.update(
+            {parameter.name: parameter.value for parameter in parameters})
+        settings, self._settings = self._settings, self._pending_settings
+        if settings.detector != self._settings.detector:
+            self._detector = LineDetector(self._settings.detector)
+        self._controller.config = self._settings.controller
+        if self._camera_matrix is not None:
+            self._camera_geometry = self._make_camera_geometry(self._camera_matrix)
+        changes = ', '.join(f'{parameter.name}={parameter.value!r}' for parameter in parameters)
+        self.get_logger().info(f'Parameters changed: {changes}.')
+
+    def _make_camera_geometry(self, camera_matrix) -> CameraGeometry:
+        settings = self._settings
+        return CameraGeometry.from_camera_matrix(
+            camera_matrix, settings.camera_height_m, math.radians(settings.camera_pitch_deg),
+            settings.camera_forward_m)
+
+    def camera_info_callback(self, msg: CameraInfo) -> None:
+        """Take the camera's intrinsics, which put the line's image points on the floor."""
+        camera_matrix = tuple(msg.k)
+        if camera_matrix == self._camera_matrix:
+            return
+        try:
+            self._camera_geometry = self._make_camera_geometry(camera_matrix)
+        except ValueError as error:
+            self._report_once(f'Cannot use camera_info: {error}')
+            return
+        self._camera_matrix = camera_matrix
 
     def image_callback(self, msg: Image) -> None:
         """Detect the line in a camera frame and publish the command it calls for."""
         self._last_image_time = self.get_clock().now()
         self._waiting_for_images = False
+        stamp_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         try:
             image = image_to_array(msg)
         except ImageConversionError as error:
-            # Once per distinct problem: a stream of bad frames must not flood the log.
-            reason = str(error)
-            if reason not in self._reported_errors:
-                self._reported_errors.add(reason)
-                self.get_logger().error(f'Cannot use camera image: {reason}')
+            self._report_once(f'Cannot use camera image: {error}')
             # Nothing seen: the controller stops or searches, it never drives on blind.
-            self._publish(self._controller.update(Detection.nothing_seen()))
+            self._publish(self._controller.update(Detection.nothing_seen(), stamp_s))
             return
         detection = self._detector.detect(image, msg.encoding)
-        self._publish(self._controller.update(detection))
-        self._report_line_change(detection.found)
+        floor_xy_m = self._floor_points(detection)
+        if floor_xy_m is None and self._settings.controller.steering_law == 'path':
+            self._report_once(
+                f'Waiting for {self._camera_info_subscription.topic_name}: the path law '
+                'needs the camera intrinsics to put the line on the floor.', error=False)
+            self._publish(LineFollowingController.stop_command())
+            return
+        command = self._controller.update(detection, stamp_s, floor_xy_m)
+        self._publish(command)
+        self._count_frame(detection.found)
+        self._publish_views(msg, image, detection, command)
+
+    def _floor_points(self, detection: Detection):
+        if self._camera_geometry is None:
+            return None
+        seen = detection.seen_bands
+        x_m, y_m = self._camera_geometry.pixels_to_floor(
+            [band.centroid_x_px for band in seen], [band.centroid_y_px for band in seen])
+        points = np.stack((x_m, y_m), axis=1)
+        return points[np.isfinite(points).all(axis=1)]
+
+    def _publish_views(self, msg: Image, image, detection: Detection,
+                       command: VelocityCommand) -> None:
+        # Each view costs time per frame: made only while someone subscribes.
+        if self._status_publisher.get_subscription_count() > 0:
+            self._publish_status(msg.header, detection, command)
+        if self._mask_publisher.get_subscription_count() > 0:
+            self._publish_mask(msg.header, detection)
         if self._debug_image_publisher.get_subscription_count() > 0:
             overlay = draw_debug(to_bgr(image, msg.encoding), detection)
             debug_msg = array_to_image(overlay, 'bgr8')
             debug_msg.header = msg.header
             self._debug_image_publisher.publish(debug_msg)
 
+    def _publish_status(self, header, detection: Detection, command: VelocityCommand) -> None:
+        state = self._controller.state
+        estimate = self._controller.path_estimate
+        figures = {
+            'line_found': detection.found,
+            'state': state,
+            'error': round(detection.error, 4),
+            'confidence': round(detection.confidence, 3),
+            'look_ahead_x_m': round(estimate.look_ahead_x_m, 3) if estimate else '',
+            'look_ahead_y_m': round(estimate.look_ahead_y_m, 3) if estimate else '',
+            'heading_deg': round(math.degrees(estimate.heading_rad), 1) if estimate else '',
+            'sharpest_curvature_per_m': (round(estimate.sharpest_curvature_per_m, 3)
+                                         if estimate else ''),
+            'linear_mps': round(command.linear_mps, 3),
+            'angular_radps': round(command.angular_radps, 3),
+            **self.line_statistics,
+        }
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK if state == STATE_TRACKING else DiagnosticStatus.WARN,
+            name=STATUS_NAME, hardware_id=self.get_fully_qualified_name(),
+            message=f'{state}, confidence {detection.confidence:.2f}',
+            values=[KeyValue(key=key, value=str(value)) for key, value in figures.items()])
+        self._status_publisher.publish(DiagnosticArray(header=header, status=[status]))
+
+    def _publish_mask(self, header, detection: Detection) -> None:
+        size = (detection.image_height_px, detection.image_width_px)
+        if self._mask_frame is None or self._mask_frame.shape != size:
+            self._mask_frame = np.zeros(size, dtype=np.uint8)
+        self._mask_frame[:] = 0
+        band_masks = self._detector.last_mask
+        first_row = 0
+        for band in detection.bands:
+            rows = band.bottom_px - band.top_px
+            self._mask_frame[band.top_px:band.bottom_px] = band_masks[first_row:first_row + rows]
+            first_row += rows
+        mask_msg = array_to_image(self._mask_frame, 'mono8')
+        mask_msg.header = header
+        self._mask_publisher.publish(mask_msg)
+
     def image_watch_callback(self) -> None:
         """Stop the robot when the camera has gone quiet."""
         if self._waiting_for_images:
             return
         silence = self.get_clock().now() - self._last_image_time
-        if silence.nanoseconds * 1e-9 > self._image_timeout_s:
+        if silence.nanoseconds * 1e-9 > self._settings.image_timeout_s:
             self._waiting_for_images = True
             self.get_logger().warn(
-                f'No camera image for {self._image_timeout_s:g} s: stopping until images '
-                'come back.')
+                f'No camera image for {self._settings.image_timeout_s:g} s: stopping until '
+                'images come back.')
+            self._controller.reset()
             self._publish(LineFollowingController.stop_command())
 
-    def _report_line_change(self, found: bool) -> None:
+    def _report_once(self, text: str, error: bool = True) -> None:
+        # Once per distinct problem: a stream of bad frames must not flood the log.
+        if text in self._reported_errors:
+            return
+        self._reported_errors.add(text)
+        (self.get_logger().error if error else self.get_logger().info)(text)
+
+    def _count_frame(self, found: bool) -> None:
+        self._frames += 1
+        self._frames_line_lost += not found
         if found == self._line_was_found:
             return
+        self._recoveries += found and self._line_was_found is False
         self._line_was_found = found
         if found:
             self.get_logger().info('Line found.')
         else:
             self.get_logger().warn(
                 'Line lost: ' + ('searching toward where it was last seen.'
-                                 if self._controller.config.lost_line_behaviour == 'search'
+                                 if self._settings.controller.lost_line_behaviour == 'search'
                                  else 'stopping.'))
 
     def _publish(self, command: VelocityCommand) -> None:

@@ -1,14 +1,17 @@
 """
 The follower node over real DDS: what a user sees on its topics, its log and its parameters.
 
-Each test puts the follower and a small client node in one executor on a private Context.
+Each test puts the follower and a small client node in one executor on a private Context. The
+client plays the camera: frames 50 ms apart, and the Kinect's camera_info for the 'path' law.
 """
 
+import math
 from pathlib import Path
 import subprocess
 import sys
 
 from conftest import child_environment, NodeHarness
+from diagnostic_msgs.msg import DiagnosticArray
 from followbot.follower_node import FOLLOWER_PARAMETERS, FollowerNode
 from followbot.image_conversion import array_to_image
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS
@@ -17,15 +20,23 @@ import numpy as np
 import pytest
 from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import Image
+from rclpy.parameter_client import AsyncParameterClient
+from sensor_msgs.msg import CameraInfo, Image
 import yaml
 
-PARAMETERS_FILE = Path(__file__).resolve().parent.parent / 'config' / 'followbot.yaml'
+CONFIG_DIR = Path(__file__).resolve().parent.parent / 'config'
+PARAMETERS_FILE = CONFIG_DIR / 'followbot.yaml'
+BOOK_PARAMETERS_FILE = CONFIG_DIR / 'book_follower.yaml'
 YELLOW_BGR = (0, 246, 255)
 FLOOR_GREY = 116
 WIDTH_PX = 640
 HEIGHT_PX = 480
 LINE_HALF_WIDTH_PX = 30
+FRAME_PERIOD_S = 0.05
+# The simulated Kinect: 60 degrees across 640 pixels.
+FOCAL_PX = (WIDTH_PX / 2) / math.tan(math.radians(30.0))
+# Frames it takes the default follower to trust the line and reach a good speed.
+SETTLING_FRAMES = 10
 
 
 def camera_frame(line_column_px=None, encoding='bgr8') -> Image:
@@ -40,6 +51,14 @@ def camera_frame(line_column_px=None, encoding='bgr8') -> Image:
     return msg
 
 
+def camera_info() -> CameraInfo:
+    """Return the simulated Kinect's CameraInfo."""
+    info = CameraInfo(width=WIDTH_PX, height=HEIGHT_PX)
+    info.k = [FOCAL_PX, 0.0, (WIDTH_PX - 1) / 2, 0.0, FOCAL_PX, (HEIGHT_PX - 1) / 2,
+              0.0, 0.0, 1.0]
+    return info
+
+
 class Harness(NodeHarness):
     """A follower, and a client publishing camera frames and recording what comes back."""
 
@@ -48,17 +67,40 @@ class Harness(NodeHarness):
                          'follower_test_client')
         self.follower = self.node
         self.images = self.client.create_publisher(Image, 'camera/rgb/image_raw', 10)
+        self.camera_infos = self.client.create_publisher(
+            CameraInfo, 'camera/rgb/camera_info', 10)
+        self.parameters = AsyncParameterClient(self.client, 'follower')
+        self.time_s = 0.0
         self.cmd_vels = []
         self.debug_images = []
         self.client.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
-        self.spin_until(lambda: self.images.get_subscription_count() > 0)
+        self.spin_until(lambda: self.images.get_subscription_count() > 0
+                        and self.camera_infos.get_subscription_count() > 0)
+        self.camera_infos.publish(camera_info())
+        self.spin_until(lambda: self.follower._camera_geometry is not None)
 
     def send(self, msg):
-        """Publish a frame and return the command it causes."""
+        """Publish a frame stamped 50 ms after the previous one; return the command it causes."""
+        self.time_s += FRAME_PERIOD_S
+        msg.header.stamp.sec = int(self.time_s)
+        msg.header.stamp.nanosec = int(round((self.time_s % 1.0) * 1e9))
         count = len(self.cmd_vels)
         self.images.publish(msg)
         self.spin_until(lambda: len(self.cmd_vels) > count)
         return self.cmd_vels[-1]
+
+    def send_many(self, line_column_px, frames=SETTLING_FRAMES):
+        """Publish frames of a line at a column; return the last command."""
+        for _ in range(frames):
+            command = self.send(camera_frame(line_column_px))
+        return command
+
+    def set_parameters(self, *parameters):
+        """Set follower parameters as `ros2 param set` does; return the results."""
+        self.spin_until(self.parameters.services_are_ready)
+        future = self.parameters.set_parameters(list(parameters))
+        self.spin_until(future.done)
+        return future.result().results
 
 
 @pytest.fixture
@@ -68,26 +110,83 @@ def harness(ros_context):
     harness.close()
 
 
+@pytest.fixture
+def book_harness(ros_context):
+    harness = Harness(ros_context,
+                      cli_args=['--ros-args', '--params-file', str(BOOK_PARAMETERS_FILE)])
+    yield harness
+    harness.close()
+
+
 @pytest.mark.parametrize('line_offset_px', [0, 100, -100, 140])
-def test_steers_toward_the_line_like_the_book(harness, line_offset_px):
+def test_book_parameters_steer_like_the_book(book_harness, line_offset_px):
     line_column_px = WIDTH_PX // 2 + line_offset_px
-    command = harness.send(camera_frame(line_column_px))
+    # The first frame starts from rest; from the second on the book's law holds.
+    command = book_harness.send_many(line_column_px, frames=2)
     assert command.linear.x == pytest.approx(0.2)
     # The book's law: -(cx - w/2) / 100 rad/s; the drawn line's centroid is at column - 0.5.
     expected_radps = -(line_column_px - 0.5 - WIDTH_PX / 2) / 100.0
     assert command.angular.z == pytest.approx(expected_radps, abs=1e-3)
 
 
-def test_turn_rate_is_bounded(harness):
-    command = harness.send(camera_frame(WIDTH_PX // 2 + 250))
+def test_drives_straight_along_a_centred_line_after_trusting_it(harness):
+    first = harness.send(camera_frame(WIDTH_PX // 2))
+    assert first.linear.x == 0.0  # one frame is not yet trusted
+    command = harness.send_many(WIDTH_PX // 2)
+    assert command.linear.x > 0.3
+    assert command.angular.z == pytest.approx(0.0, abs=0.02)
+
+
+@pytest.mark.parametrize('line_offset_px, side', [(-120, 1.0), (120, -1.0)])
+def test_turns_toward_the_line(harness, line_offset_px, side):
+    command = harness.send_many(WIDTH_PX // 2 + line_offset_px)
+    assert command.linear.x > 0.0
+    assert side * command.angular.z > 0.1
+
+
+def test_speeds_up_within_the_acceleration_limit(harness):
+    speeds = [harness.send(camera_frame(WIDTH_PX // 2)).linear.x for _ in range(8)]
+    steps = np.diff(speeds)
+    assert np.all(steps >= 0.0) and speeds[-1] > 0.0
+    limit = harness.follower.get_parameter('max_linear_acceleration_mps2').value
+    assert np.all(steps <= limit * FRAME_PERIOD_S + 1e-6)
+
+
+def test_turn_rate_is_bounded(book_harness):
+    book_harness.set_parameters(Parameter('max_angular_speed_radps', value=1.5))
+    command = book_harness.send_many(WIDTH_PX // 2 + 250, frames=2)
     assert command.angular.z == pytest.approx(-1.5)
 
 
+def test_waits_for_camera_info_before_using_the_path_law(ros_context):
+    harness = Harness.__new__(Harness)
+    NodeHarness.__init__(harness, ros_context, FollowerNode(context=ros_context), 'client')
+    harness.follower = harness.node
+    harness.images = harness.client.create_publisher(Image, 'camera/rgb/image_raw', 10)
+    harness.cmd_vels, harness.time_s = [], 0.0
+    harness.client.create_subscription(Twist, 'cmd_vel', harness.cmd_vels.append, 10)
+    try:
+        harness.spin_until(lambda: harness.images.get_subscription_count() > 0)
+        for _ in range(3):
+            assert harness.send(camera_frame(WIDTH_PX // 2)) == Twist()
+        harness.spin_until(lambda: any('camera_info' in log.msg for log in harness.logs))
+        assert sum('camera_info' in log.msg for log in harness.logs) == 1
+    finally:
+        harness.close()
+
+
 def test_searches_toward_the_side_last_seen_without_driving(harness):
-    harness.send(camera_frame(WIDTH_PX // 2 + 200))
-    command = harness.send(camera_frame(None))
+    harness.send_many(WIDTH_PX // 2 + 200)
+    for _ in range(10):  # past the line memory
+        command = harness.send(camera_frame(None))
     assert command.linear.x == 0.0
     assert command.angular.z < 0.0
+
+
+def test_drives_on_through_a_short_gap(harness):
+    before = harness.send_many(WIDTH_PX // 2)
+    during = harness.send(camera_frame(None))
+    assert during.linear.x == pytest.approx(before.linear.x, abs=0.06)
 
 
 def test_bad_frames_are_reported_once_and_never_drive(harness):
@@ -99,31 +198,85 @@ def test_bad_frames_are_reported_once_and_never_drive(harness):
         harness.executor.spin_once(timeout_sec=0.01)
     assert len(harness.errors) == 1
     assert 'yuv422' in harness.errors[0]
-    # A good frame afterwards is followed as usual: nothing was lost.
-    assert harness.send(camera_frame(WIDTH_PX // 2)).linear.x == pytest.approx(0.2)
+    # Good frames afterwards are followed as usual: nothing was lost.
+    assert harness.send_many(WIDTH_PX // 2).linear.x > 0.0
 
 
-def test_debug_image_only_while_someone_watches(harness):
+def test_views_only_while_someone_watches(harness):
     harness.send(camera_frame(WIDTH_PX // 2))
-    assert harness.follower.count_subscribers('/follower/debug_image') == 0
-    harness.client.create_subscription(
-        Image, '/follower/debug_image', harness.debug_images.append, 10)
-    harness.spin_until(lambda: harness.follower.count_subscribers('/follower/debug_image'))
-    frame = camera_frame(WIDTH_PX // 2)
-    frame.header.stamp.sec = 42
-    harness.images.publish(frame)
-    harness.spin_until(lambda: harness.debug_images)
-    debug = harness.debug_images[-1]
+    received = {'debug_image': [], 'mask': [], 'status': []}
+    for name, messages in received.items():
+        assert harness.follower.count_subscribers(f'/follower/{name}') == 0
+        harness.client.create_subscription(
+            DiagnosticArray if name == 'status' else Image, f'/follower/{name}',
+            messages.append, 10)
+        harness.spin_until(lambda: harness.follower.count_subscribers(f'/follower/{name}'))
+    frame = camera_frame(WIDTH_PX // 2 - 100)
+    harness.send(frame)
+    harness.spin_until(lambda: all(received.values()))
+    debug, mask, status = (received[name][-1] for name in ('debug_image', 'mask', 'status'))
+    for message in (debug, mask, status):
+        assert message.header.stamp == frame.header.stamp
     assert (debug.width, debug.height, debug.encoding) == (WIDTH_PX, HEIGHT_PX, 'bgr8')
-    assert debug.header.stamp.sec == 42
     assert debug.header.frame_id == 'camera_rgb_optical_frame'
     assert bytes(debug.data) != bytes(frame.data)  # the overlay is drawn
+    # The mask shows the line's pixels in the bands only.
+    assert (mask.width, mask.height, mask.encoding) == (WIDTH_PX, HEIGHT_PX, 'mono8')
+    mask_px = np.frombuffer(bytes(mask.data), np.uint8).reshape(HEIGHT_PX, WIDTH_PX)
+    marked_rows, marked_columns = np.nonzero(mask_px)
+    assert set(np.unique(mask_px)) == {0, 255}
+    assert marked_columns.min() == WIDTH_PX // 2 - 100 - LINE_HALF_WIDTH_PX
+    assert marked_columns.max() == WIDTH_PX // 2 - 100 + LINE_HALF_WIDTH_PX - 1
+    assert len(np.unique(marked_rows)) < HEIGHT_PX / 2
+    values = {value.key: value.value for value in status.status[0].values}
+    assert values['line_found'] == 'True'
+    assert float(values['error']) == pytest.approx(-100.5 / (WIDTH_PX / 2), abs=1e-3)
+    assert float(values['confidence']) == 1.0
+    assert float(values['look_ahead_y_m']) > 0.0  # the line is left of the robot
+    assert values['state'] in ('acquiring', 'tracking')
+    for key in ('linear_mps', 'angular_radps', 'frames', 'frames_line_lost', 'recoveries'):
+        float(values[key])
+
+
+def test_counts_lost_frames_and_recoveries(harness):
+    harness.send_many(WIDTH_PX // 2, frames=3)
+    for _ in range(2):
+        harness.send(camera_frame(None))
+    harness.send_many(WIDTH_PX // 2, frames=3)
+    assert harness.follower.line_statistics == {
+        'frames': 8, 'frames_line_lost': 2, 'recoveries': 1}
+
+
+def test_parameter_change_takes_effect_on_the_next_frame(harness):
+    assert harness.send_many(WIDTH_PX // 2, frames=30).linear.x == pytest.approx(0.7)
+    results = harness.set_parameters(Parameter('linear_speed_mps', value=0.3),
+                                     Parameter('max_linear_acceleration_mps2', value=50.0))
+    assert all(result.successful for result in results)
+    assert harness.send(camera_frame(WIDTH_PX // 2)).linear.x == pytest.approx(0.3)
+    assert harness.follower.get_parameter('linear_speed_mps').value == 0.3
+
+
+@pytest.mark.parametrize('parameter, reason', [
+    (Parameter('hue_min', value=60), 'hue_min 60 must not exceed hue_max 40'),
+    (Parameter('min_linear_speed_mps', value=0.9),
+     'min_linear_speed_mps 0.9 must not exceed linear_speed_mps 0.7'),
+    (Parameter('steering_law', value='wobble'), 'steering_law must be one of path, proportional'),
+    (Parameter('linear_speed_mps', value=5.0), ''),  # out of its declared range
+    (Parameter('band_count', value=2.5), ''),  # wrong type
+])
+def test_bad_parameter_changes_are_refused_with_a_reason(harness, parameter, reason):
+    before = harness.follower.get_parameter(parameter.name).value
+    [result] = harness.set_parameters(parameter)
+    assert not result.successful
+    assert reason in result.reason and result.reason
+    assert harness.follower.get_parameter(parameter.name).value == before
+    assert harness.send_many(WIDTH_PX // 2).linear.x > 0.0  # still following
 
 
 def test_zero_twist_on_shutdown(ros_context):
     harness = Harness(ros_context)
     try:
-        assert harness.send(camera_frame(WIDTH_PX // 2)).linear.x > 0.0
+        assert harness.send_many(WIDTH_PX // 2).linear.x > 0.0
         count = len(harness.cmd_vels)
         harness.follower.destroy_node()
         harness.spin_until(lambda: len(harness.cmd_vels) > count)
@@ -134,7 +287,7 @@ def test_zero_twist_on_shutdown(ros_context):
 
 
 def test_stops_when_the_camera_goes_quiet(harness):
-    assert harness.send(camera_frame(WIDTH_PX // 2)).linear.x > 0.0
+    assert harness.send_many(WIDTH_PX // 2).linear.x > 0.0
     count = len(harness.cmd_vels)
     harness.spin_until(lambda: len(harness.cmd_vels) > count, timeout_s=3.0)
     assert harness.cmd_vels[-1] == Twist()
@@ -155,7 +308,7 @@ def test_parameters_file_and_overrides_reach_the_node(ros_context, tmp_path):
     tuned.write_text(yaml.safe_dump(document))
     harness = Harness(ros_context, cli_args=['--ros-args', '--params-file', str(tuned)])
     try:
-        assert harness.send(camera_frame(WIDTH_PX // 2)).linear.x == pytest.approx(0.35)
+        assert harness.send_many(WIDTH_PX // 2, frames=30).linear.x == pytest.approx(0.35)
     finally:
         harness.close()
 

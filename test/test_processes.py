@@ -118,8 +118,10 @@ def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
     assert clock_s == sorted(clock_s) and clock_s[-1] > clock_s[0]
     assert clock_s[-1] >= stamps_s[-1] - CAMERA_PERIOD_S
 
-    steering = [msg for msg in cmd_vels if msg.linear.x > 0.0]
-    assert steering and all(msg.linear.x == pytest.approx(0.2) for msg in steering)
+    # The follower drives: speeding up from rest, never beyond its cruising speed.
+    speeds_mps = [msg.linear.x for msg in cmd_vels]
+    assert max(speeds_mps) > 0.0
+    assert all(0.0 <= speed_mps <= 0.7 + 1e-9 for speed_mps in speeds_mps)
 
 
 # What a ROS user sees of the simulator alone: topic -> (type, frame_id of its messages).
