@@ -1,6 +1,7 @@
 # Two commands on a fresh machine (Debian/Ubuntu, Python 3.11 or 3.12, no ROS install):
 #   make demo   - set up .venv, then watch the simulated TurtleBot lap the course
 #   make test   - set up .venv, then run the whole test suite (what CI runs)
+#   make scorecard - score the follower and the book's controller on every built-in course
 # Set-up is done once and redone only when a requirements file or setup.py changes.
 
 PYTHON ?= python3
@@ -11,13 +12,16 @@ STAMP := $(VENV)/.followbot-installed
 MESA_EGL_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2
 LDCONFIG := $(shell command -v ldconfig || echo /sbin/ldconfig)
 
-.PHONY: demo test setup system-deps clean
+.PHONY: demo test scorecard setup system-deps clean
 
 demo: $(STAMP)
 	$(VENV)/bin/followbot $(DEMO_ARGS)
 
 test: $(STAMP)
 	$(VENV)/bin/python -m pytest -q test
+
+scorecard: $(STAMP)
+	$(VENV)/bin/scorecard
 
 setup: $(STAMP)
 

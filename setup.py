@@ -31,6 +31,7 @@ setup(
             'follower = followbot.follower_node:main',
             'sim = followbot_sim.sim_node:main',
             'followbot = followbot.launcher:main',
+            'scorecard = followbot.scorecard:main',
         ],
     },
 )

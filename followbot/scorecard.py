@@ -1,0 +1,784 @@
+"""
+The ``scorecard`` command: score follower configurations side by side on the built-in courses.
+
+For every (configuration, scenario) pair it runs the simulator and the follower in one process,
+headless and as fast as the machine allows, with real nodes talking over real DDS topics, until
+the robot completes a lap, runs out of simulated time or gets stuck. The simulator's ground
+truth (its LapTracker) and the follower's line statistics give the figures: completion, lap
+time, mean speed, distance from the line, frames without the line, recoveries. Runs go to a
+pool of worker processes, each on its own ROS domain so concurrent runs never hear each other;
+the result is a Markdown table on stdout and a JSON file.
+
+A configuration is a ROS 2 parameters file: ``followbot`` (the installed defaults) and ``book``
+(the book's controller) always exist, ``--params-file`` adds more. The whole file is given to
+the run, so a ``followbot_sim:`` section in it applies to the simulator too (its camera, say);
+the scenario's course, lighting, noise and seed, and the pacing, are always the scorecard's.
+"""
+
+import argparse
+import collections
+import concurrent.futures
+import dataclasses
+import datetime
+import importlib.metadata
+import json
+import multiprocessing
+import os
+from pathlib import Path
+import platform
+import shlex
+import signal
+import socket
+import sys
+import threading
+import time
+
+from followbot.follower_node import FollowerNode
+from followbot.package_files import share_file
+from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
+from followbot_sim.course_library import COURSES
+from followbot_sim.sim_node import SIMULATOR_PARAMETERS, SimulatorNode
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+import yaml
+
+# The command's name, in its messages and in the command line the footer repeats.
+PROGRAM = 'scorecard'
+# The configurations every scorecard knows: name -> parameters file in the package's config/.
+BUILTIN_CONFIGURATIONS = {'followbot': 'followbot.yaml', 'book': 'book_follower.yaml'}
+# The configuration the others' lap times are compared with (the "x book" column).
+REFERENCE_CONFIGURATION = 'book'
+# The book's forward speed: the default time limit leaves room for a lap at that pace.
+BOOK_SPEED_MPS = 0.2
+# Default time limit, in laps at the book's speed: slower in bends, plus a margin.
+TIME_LIMIT_LAPS = 2.5
+# A run is stuck when its progress along the line gained less than this over the stuck window.
+STUCK_MIN_PROGRESS_M = 0.05
+DEFAULT_STUCK_AFTER_S = 30.0
+# Default domain of worker 0: the parent's pid spreads concurrent scorecards over 40 domains
+# above the test suite's usual ones.
+FIRST_DOMAIN_ID = 150
+DOMAIN_ID_SPREAD = 40
+# Largest ROS_DOMAIN_ID whose DDS ports fit in the port range on Linux.
+MAX_DOMAIN_ID = 232
+# Wall seconds the two nodes may take to discover each other before a run gives up.
+CONNECT_TIMEOUT_S = 30.0
+CONNECT_POLL_S = 0.05
+# spin_once returns at once at real-time factor 0; the timeout only bounds a stalled graph.
+SPIN_TIMEOUT_S = 1.0
+# Both must be connected before simulated time starts: camera to follower, follower to wheels.
+IMAGE_TOPIC = 'camera/rgb/image_raw'
+CMD_VEL_TOPIC = 'cmd_vel'
+# Light and noise of the book_loop_light_noise scenario: pools of light plus a noisy camera.
+LIGHT_NOISE_STDDEV_LEVELS = 24.0
+LIGHT_NOISE_SEED = 1
+# Simulator parameters the scorecard sets for every run; --sim-param may not change them.
+SCORECARD_SIM_PARAMETERS = ('course', 'lighting_zones', 'camera_noise_stddev_levels',
+                            'random_seed', 'real_time_factor', 'start_paused', 'run_duration_s')
+# ROS log levels for the nodes: quiet by default, as several runs share one terminal.
+NODE_LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
+# How a --sim-param error names the type a simulator parameter takes.
+TYPE_NAMES = {bool: 'a boolean (true or false)', int: 'an integer',
+              float: 'a floating-point number', str: 'a string'}
+# How a run ended, as the table and the JSON say it.
+END_LAP = 'lap completed'
+END_TIME_LIMIT = 'time limit'
+END_STUCK = 'stuck'
+END_ERROR = 'error'
+END_INTERRUPTED = 'interrupted'
+# Shown in the table for a figure a run does not have (no lap, no ratio, an error).
+MISSING = '—'
+# Longest error text shown in the table; the progress line and the JSON have all of it.
+MAX_TABLE_ERROR_CHARS = 80
+# The table gives distances from the line in centimetres; the JSON keeps metres.
+CM_PER_M = 100.0
+TABLE_COLUMNS = ('scenario', 'configuration', 'done %', 'lap s', 'mean m/s', 'RMS cm',
+                 'max cm', 'off line s', 'lost frames', 'recoveries', 'end', 'wall s', '× book')
+
+
+@dataclasses.dataclass(frozen=True)
+class Scenario:
+    """A course and the camera's conditions on it: one row per configuration."""
+
+    name: str
+    course: str
+    lighting_zones: bool = False
+    camera_noise_stddev_levels: float = 0.0
+    random_seed: int = 0
+
+
+@dataclasses.dataclass(frozen=True)
+class Configuration:
+    """A follower configuration: a name and the ROS 2 parameters file that sets it up."""
+
+    name: str
+    params_file: Path
+
+
+SCENARIOS = {
+    **{name: Scenario(name, name) for name in COURSES},
+    'book_loop_light_noise': Scenario(
+        'book_loop_light_noise', 'book_loop', lighting_zones=True,
+        camera_noise_stddev_levels=LIGHT_NOISE_STDDEV_LEVELS, random_seed=LIGHT_NOISE_SEED),
+}
+
+
+def _split_names(values) -> list:
+    """Flatten repeated, comma-separated option values into names, first occurrence kept."""
+    names = []
+    for value in values or ():
+        for name in value.split(','):
+            name = name.strip()
+            if name and name not in names:
+                names.append(name)
+    return names
+
+
+def select_scenarios(names=None) -> list:
+    """
+    Pick the scenarios to run.
+
+    :param names: scenario names or YAML course file paths, each possibly a comma-separated
+        list (the values of repeated ``--scenarios``); all built-in scenarios when empty.
+    :return: the scenarios, in the order given.
+    :raises ValueError: for a name that is neither a built-in scenario nor a readable, valid
+        course file.
+    """
+    chosen = _split_names(names)
+    if not chosen:
+        return list(SCENARIOS.values())
+    scenarios = []
+    for name in chosen:
+        if name in SCENARIOS:
+            scenarios.append(SCENARIOS[name])
+        elif Path(name).suffix.lower() in COURSE_FILE_SUFFIXES:
+            # Load it here, once: a bad file is one clear message, not an error in every row.
+            load_course(name)
+            scenarios.append(Scenario(name, str(Path(name).resolve())))
+        else:
+            raise ValueError(
+                f'Unknown scenario {name!r}: give one of {", ".join(SCENARIOS)} or the path '
+                f'of a course file ending in {" or ".join(COURSE_FILE_SUFFIXES)}.')
+    return scenarios
+
+
+def _read_params_file(path: Path) -> None:
+    try:
+        document = yaml.safe_load(path.read_text(encoding='utf-8'))
+    except FileNotFoundError:
+        raise ValueError(f'Parameters file {path} does not exist.') from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ValueError(f'Cannot read parameters file {path}: {error}.') from None
+    except yaml.YAMLError as error:
+        raise ValueError(f'Parameters file {path} is not valid YAML: '
+                         f'{" ".join(str(error).split())}') from None
+    if not isinstance(document, dict):
+        raise ValueError(f'Parameters file {path} must map node names to '
+                         '{ros__parameters: {...}}, as ROS 2 parameters files do.')
+
+
+def select_configurations(params_files=(), names=None) -> list:
+    """
+    Build the configurations to compare.
+
+    :param params_files: further parameters files; each is a configuration named by its stem.
+    :param names: configuration names to keep, each possibly a comma-separated list; all when
+        empty.
+    :return: the configurations: the built-in ones first, then the files in the order given.
+    :raises ValueError: for a missing or malformed parameters file, two configurations with the
+        same name, or an unknown name in ``names``.
+    """
+    configurations = [Configuration(name, share_file('config', file_name))
+                      for name, file_name in BUILTIN_CONFIGURATIONS.items()]
+    for params_file in params_files:
+        params_file = Path(params_file)
+        _read_params_file(params_file)
+        name = params_file.stem
+        if any(configuration.name == name for configuration in configurations):
+            raise ValueError(
+                f'Parameters file {params_file} would make a second configuration named '
+                f'{name!r}: configurations are named by file stem, so rename the file.')
+        configurations.append(Configuration(name, params_file.resolve()))
+    chosen = _split_names(names)
+    known = [configuration.name for configuration in configurations]
+    unknown = [name for name in chosen if name not in known]
+    if unknown:
+        raise ValueError(f'Unknown configuration {unknown[0]!r}: give one of {", ".join(known)} '
+                         '(--params-file FILE adds one named after the file).')
+    return [configuration for configuration in configurations
+            if not chosen or configuration.name in chosen]
+
+
+def parse_sim_parameter(text: str) -> tuple:
+    """
+    Read one ``--sim-param NAME:=VALUE``, typed the way ROS reads ``-p NAME:=VALUE``.
+
+    :param text: the option's value.
+    :return: the parameter's name and its value (an integer is widened for a floating-point
+        parameter).
+    :raises ValueError: if the text is not ``NAME:=VALUE``, names no simulator parameter or
+        one the scorecard sets itself, or the value has the wrong type or is out of range.
+    """
+    name, separator, value_text = text.partition(':=')
+    name = name.strip()
+    if not separator or not name:
+        raise ValueError(f'--sim-param takes NAME:=VALUE (such as camera_rate_hz:=30.0), got '
+                         f'{text!r}.')
+    if name in SCORECARD_SIM_PARAMETERS:
+        raise ValueError(f'Simulator parameter {name!r} is set by the scorecard for every run '
+                         '(scenario or pacing); choose a scenario instead.')
+    if name not in SIMULATOR_PARAMETERS:
+        settable = sorted(set(SIMULATOR_PARAMETERS) - set(SCORECARD_SIM_PARAMETERS))
+        raise ValueError(f'Unknown simulator parameter {name!r}: give one of '
+                         f'{", ".join(settable)}.')
+    spec = SIMULATOR_PARAMETERS[name]
+    try:
+        value = yaml.safe_load(value_text)
+    except yaml.YAMLError:
+        value = value_text
+    if isinstance(spec.default, float) and type(value) is int:
+        value = float(value)
+    if type(value) is not type(spec.default):
+        raise ValueError(f'Simulator parameter {name!r} takes {TYPE_NAMES[type(spec.default)]}, '
+                         f'got {value_text!r}.')
+    if spec.low is not None and not spec.low <= value <= spec.high:
+        raise ValueError(f'Simulator parameter {name!r} must be in {spec.low:g}..{spec.high:g}, '
+                         f'got {value!r}.')
+    return name, value
+
+
+def default_time_limit_s(course_length_m: float) -> float:
+    """
+    Return the default simulated-time limit of a run: room for a lap at the book's speed.
+
+    :param course_length_m: length of the course's centre line.
+    :return: the limit in simulated seconds.
+    """
+    return TIME_LIMIT_LAPS * course_length_m / BOOK_SPEED_MPS
+
+
+class StuckDetector:
+    """Tell when progress along the line has stalled over a window of simulated time."""
+
+    def __init__(self, window_s: float, min_progress_m: float = STUCK_MIN_PROGRESS_M):
+        """
+        Start with no samples.
+
+        :param window_s: simulated seconds over which progress is measured.
+        :param min_progress_m: least progress over the window that is not stuck.
+        :raises ValueError: if the window is not positive.
+        """
+        if not window_s > 0.0:
+            raise ValueError(f'The stuck window must be positive, got {window_s} s.')
+        self._window_s = window_s
+        self._min_progress_m = min_progress_m
+        self._samples = collections.deque()
+
+    def update(self, time_s: float, progress_m: float) -> bool:
+        """
+        Record the progress at a time and tell whether the robot is stuck.
+
+        :param time_s: simulated time, never decreasing.
+        :param progress_m: progress along the line at that time.
+        :return: whether the progress gained since ``window_s`` ago is below the minimum
+            (never true before a whole window has passed).
+        """
+        self._samples.append((time_s, progress_m))
+        window_start_s = time_s - self._window_s
+        # Keep the latest sample at or before the window's start as its reference.
+        while len(self._samples) > 1 and self._samples[1][0] <= window_start_s:
+            self._samples.popleft()
+        reference_s, reference_m = self._samples[0]
+        return reference_s <= window_start_s and progress_m - reference_m < self._min_progress_m
+
+
+def run_metrics(summary: dict, line_statistics: dict) -> dict:
+    """
+    Compute a run's figures from the simulator's score and the follower's line statistics.
+
+    :param summary: ``LapTracker.summary()`` at the end of the run.
+    :param line_statistics: ``FollowerNode.line_statistics`` at the end of the run.
+    :return: ``completion_percent`` (progress capped to one lap, never below 0),
+        ``lap_time_s`` (None without a lap), ``mean_speed_mps`` (course length per lap time,
+        else progress per elapsed time; None before any time passed), cross-track
+        ``rms_distance_from_line_m`` and ``max_distance_from_line_m``, ``time_off_line_s``,
+        ``frames``, ``frames_line_lost``, ``line_lost_percent`` (None without frames) and
+        ``recoveries``.
+    """
+    length_m = summary['course_length_m']
+    progress_m = summary['progress_m']
+    lap_time_s = summary['lap_times_s'][0] if summary['laps_completed'] >= 1 else None
+    if lap_time_s is not None:
+        mean_speed_mps = length_m / lap_time_s
+    elif summary['elapsed_s'] > 0.0:
+        mean_speed_mps = progress_m / summary['elapsed_s']
+    else:
+        mean_speed_mps = None
+    frames = line_statistics['frames']
+    frames_line_lost = line_statistics['frames_line_lost']
+    return {
+        'completion_percent': 100.0 * min(max(progress_m, 0.0), length_m) / length_m,
+        'lap_time_s': lap_time_s,
+        'mean_speed_mps': mean_speed_mps,
+        'rms_distance_from_line_m': summary['rms_distance_from_line_m'],
+        'max_distance_from_line_m': summary['max_distance_from_line_m'],
+        'time_off_line_s': summary['time_off_line_s'],
+        'frames': frames,
+        'frames_line_lost': frames_line_lost,
+        'line_lost_percent': 100.0 * frames_line_lost / frames if frames else None,
+        'recoveries': line_statistics['recoveries'],
+    }
+
+
+def speedups(runs: list) -> dict:
+    """
+    Compare each configuration's lap time with the book's on the same scenario.
+
+    :param runs: run records with ``scenario``, ``configuration`` and, for a run that ended,
+        ``metrics``.
+    :return: (scenario, configuration) -> book lap time / this lap time, for every run other
+        than the book's whose scenario has both lap times (above 1: faster than the book).
+    """
+    book_lap_s = {run['scenario']: run['metrics']['lap_time_s'] for run in runs
+                  if run['configuration'] == REFERENCE_CONFIGURATION and run.get('metrics')}
+    ratios = {}
+    for run in runs:
+        reference_s = book_lap_s.get(run['scenario'])
+        lap_s = run['metrics']['lap_time_s'] if run.get('metrics') else None
+        if run['configuration'] != REFERENCE_CONFIGURATION and reference_s and lap_s:
+            ratios[run['scenario'], run['configuration']] = reference_s / lap_s
+    return ratios
+
+
+def _count(number: int, noun: str) -> str:
+    return f'{number} {noun}' + ('' if number == 1 else 's')
+
+
+def _number(value, digits: int, scale: float = 1.0) -> str:
+    return MISSING if value is None else f'{value * scale:.{digits}f}'
+
+
+def _lost_frames_cell(metrics: dict) -> str:
+    if metrics['line_lost_percent'] is None:
+        return str(metrics['frames_line_lost'])
+    return f"{metrics['frames_line_lost']} ({metrics['line_lost_percent']:.1f}%)"
+
+
+def _table_row(run: dict, ratio) -> list:
+    cells = [run['scenario'], run['configuration']]
+    metrics = run.get('metrics')
+    if not metrics:
+        blanks = [MISSING] * (len(TABLE_COLUMNS) - len(cells) - 3)
+        end = f"{END_ERROR}: {run['error']}" if run.get('error') else run['end_reason']
+        if len(end) > MAX_TABLE_ERROR_CHARS:
+            end = end[:MAX_TABLE_ERROR_CHARS - 1] + '…'
+        # A '|' in an error message would split the Markdown cell.
+        return cells + blanks + [end.replace('|', '/'), _number(run.get('wall_s'), 0), MISSING]
+    return cells + [
+        _number(metrics['completion_percent'], 0),
+        _number(metrics['lap_time_s'], 1),
+        _number(metrics['mean_speed_mps'], 3),
+        _number(metrics['rms_distance_from_line_m'], 1, CM_PER_M),
+        _number(metrics['max_distance_from_line_m'], 1, CM_PER_M),
+        _number(metrics['time_off_line_s'], 1),
+        _lost_frames_cell(metrics),
+        str(metrics['recoveries']),
+        run['end_reason'],
+        _number(run['wall_s'], 0),
+        MISSING if ratio is None else f'{ratio:.2f}×',
+    ]
+
+
+def format_table(runs: list) -> str:
+    """
+    Lay out the runs as a Markdown table, one row per run, in the order given.
+
+    :param runs: run records (see :func:`run_one`).
+    :return: the table as text: header, rule, then one line per run; a failed run shows its
+        error in the ``end`` column.
+    """
+    ratios = speedups(runs)
+    rows = [list(TABLE_COLUMNS)]
+    rows += [_table_row(run, ratios.get((run['scenario'], run['configuration'])))
+             for run in runs]
+    widths = [max(len(row[column]) for row in rows) for column in range(len(TABLE_COLUMNS))]
+    numeric = [False, False] + [True] * (len(TABLE_COLUMNS) - 2)
+    numeric[TABLE_COLUMNS.index('end')] = False
+
+    def line(cells):
+        return '| ' + ' | '.join(cell.rjust(width) if right else cell.ljust(width)
+                                 for cell, width, right in zip(cells, widths, numeric)) + ' |'
+
+    rule = '| ' + ' | '.join('-' * (width - 1) + (':' if right else '-')
+                             for width, right in zip(widths, numeric)) + ' |'
+    return '\n'.join([line(rows[0]), rule] + [line(row) for row in rows[1:]])
+
+
+def format_progress(run: dict, done: int, total: int) -> str:
+    """
+    Describe a finished run in one line.
+
+    :param run: the run record.
+    :param done: how many runs have finished, this one included.
+    :param total: how many runs there are.
+    :return: a line such as ``[scorecard] 3/14 s_bends / book: lap completed, done 100%,
+        lap 121.4 s, RMS 2.9 cm; 58 s wall, 2.1x real time``.
+    """
+    head = f"[{PROGRAM}] {done}/{total} {run['scenario']} / {run['configuration']}: "
+    metrics = run.get('metrics')
+    if not metrics:
+        return head + f"{run['end_reason']}: {run.get('error') or 'no figures'}"
+    lap = MISSING if metrics['lap_time_s'] is None else f"{metrics['lap_time_s']:.1f} s"
+    return (head + f"{run['end_reason']}, done {metrics['completion_percent']:.0f}%, lap {lap}, "
+            f"RMS {CM_PER_M * metrics['rms_distance_from_line_m']:.1f} cm; "
+            f"{run['wall_s']:.0f} s wall, {_number(run['simulated_per_wall'], 1)}x real time")
+
+
+# Set in each worker process by _init_worker.
+_worker = {'domain_id': None, 'stop': threading.Event()}
+
+
+def _init_worker(slots, first_domain_id: int) -> None:
+    """Give this worker process its own ROS domain and make Ctrl-C end its run cleanly."""
+    _worker['domain_id'] = first_domain_id + slots.get()
+    os.environ['ROS_DOMAIN_ID'] = str(_worker['domain_id'])
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    for stop_signal in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(stop_signal, lambda signum, frame: _worker['stop'].set())
+
+
+def _simulator_overrides(task: dict) -> list:
+    scenario = task['scenario']
+    values = {
+        **dict(task['sim_parameters']),
+        'real_time_factor': 0.0,
+        'start_paused': False,
+        'run_duration_s': 0.0,
+        'course': scenario['course'],
+        'lighting_zones': scenario['lighting_zones'],
+        'camera_noise_stddev_levels': scenario['camera_noise_stddev_levels'],
+        'random_seed': scenario['random_seed'],
+    }
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+def _wait_until_connected(executor, simulator, follower) -> None:
+    """Spin until the follower hears the camera and the simulator hears the follower."""
+    deadline_s = time.monotonic() + CONNECT_TIMEOUT_S
+    while not (simulator.count_subscribers(IMAGE_TOPIC) > 0
+               and follower.count_subscribers(CMD_VEL_TOPIC) > 0):
+        if _worker['stop'].is_set():
+            return  # The run loop ends the run as interrupted.
+        if time.monotonic() > deadline_s:
+            raise RuntimeError(f'The follower and the simulator did not find each other within '
+                               f'{CONNECT_TIMEOUT_S:g} s.')
+        executor.spin_once(timeout_sec=CONNECT_POLL_S)
+
+
+def _drive(task: dict, context: Context) -> dict:
+    """Build both nodes, run until the run ends, and collect the figures."""
+    nodes = []
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        simulator = SimulatorNode(context=context, parameter_overrides=_simulator_overrides(task))
+        nodes.append(simulator)
+        follower = FollowerNode(context=context, parameter_overrides=[
+            Parameter('use_sim_time', value=True)])
+        nodes.append(follower)
+        # Simulated time starts only once both ends are connected: no lap time is spent
+        # waiting for discovery with the robot standing still.
+        executor.add_node(follower)
+        _wait_until_connected(executor, simulator, follower)
+        executor.add_node(simulator)
+        world, tracker = simulator.world, simulator.lap_tracker
+        time_limit_s = task['time_limit_s'] or default_time_limit_s(world.course.length_m)
+        stuck = StuckDetector(task['stuck_after_s'])
+        start_s = time.monotonic()
+        while True:
+            executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+            if tracker.laps_completed >= 1:
+                end_reason = END_LAP
+            elif world.time_s >= time_limit_s:
+                end_reason = END_TIME_LIMIT
+            elif stuck.update(world.time_s, tracker.progress_m):
+                end_reason = END_STUCK
+            elif _worker['stop'].is_set():
+                end_reason = END_INTERRUPTED
+            else:
+                continue
+            break
+        wall_s = time.monotonic() - start_s
+        width_px, height_px = world.image_size_px
+        summary = tracker.summary()
+        line_statistics = dict(follower.line_statistics)
+        return {
+            'end_reason': end_reason,
+            'time_limit_s': time_limit_s,
+            'metrics': run_metrics(summary, line_statistics),
+            'lap_tracker': summary,
+            'line_statistics': line_statistics,
+            'wall_s': wall_s,
+            'simulated_per_wall': summary['time_s'] / wall_s if wall_s > 0.0 else None,
+            'camera': {'width_px': width_px, 'height_px': height_px,
+                       'rate_hz': simulator.get_parameter('camera_rate_hz').value,
+                       'noise_stddev_levels': world.camera_noise_stddev},
+        }
+    finally:
+        executor.shutdown()
+        for node in reversed(nodes):
+            node.destroy_node()
+
+
+def run_one(task: dict) -> dict:
+    """
+    Run one configuration on one scenario in this worker process and score it.
+
+    :param task: ``configuration``, ``params_file`` (str), ``scenario`` (a Scenario as a
+        dict), ``sim_parameters`` (name, value pairs), ``time_limit_s`` (None for the
+        default), ``stuck_after_s`` and ``node_log_level``.
+    :return: the run record: the task's names, ``end_reason``, ``error`` (one line, or None),
+        ``metrics`` (see :func:`run_metrics`; None after an error), ``lap_tracker`` and
+        ``line_statistics`` (the raw figures), ``time_limit_s``, ``wall_s`` (the run's spin
+        loop), ``setup_wall_s``, ``simulated_per_wall``, ``camera`` and ``domain_id``.
+    """
+    record = {'scenario': task['scenario']['name'], 'configuration': task['configuration'],
+              'params_file': task['params_file'], 'course': task['scenario']['course'],
+              'domain_id': _worker['domain_id'], 'end_reason': END_ERROR, 'error': None,
+              'metrics': None}
+    start_s = time.monotonic()
+    if _worker['stop'].is_set():
+        record.update(end_reason=END_INTERRUPTED, wall_s=0.0)
+        return record
+    context = Context()
+    try:
+        rclpy.init(context=context, domain_id=_worker['domain_id'],
+                   args=['--ros-args', '--log-level', task['node_log_level'],
+                         '--params-file', task['params_file']],
+                   signal_handler_options=SignalHandlerOptions.NO)
+        record.update(_drive(task, context))
+        record['setup_wall_s'] = time.monotonic() - start_s - record['wall_s']
+    except Exception as error:  # Any failure is this run's result, reported in its row.
+        message = ' '.join(str(error).split()) or 'no message'
+        record.update(error=f'{type(error).__name__}: {message}',
+                      wall_s=time.monotonic() - start_s)
+    finally:
+        rclpy.try_shutdown(context=context)
+    return record
+
+
+def _domain_id_option(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= MAX_DOMAIN_ID:
+        raise argparse.ArgumentTypeError(f'must be in 0..{MAX_DOMAIN_ID}, got {value}')
+    return value
+
+
+def _positive(text: str) -> float:
+    value = float(text)
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f'must be positive, got {text}')
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be at least 1, got {text}')
+    return value
+
+
+def parse_arguments(argv=None) -> argparse.Namespace:
+    """
+    Read and check the command line.
+
+    :param argv: arguments without the program name; ``sys.argv[1:]`` when None.
+    :return: the options, with ``scenarios`` (Scenario list), ``configurations``
+        (Configuration list) and ``sim_parameters`` ((name, value) list) resolved.
+    """
+    parser = argparse.ArgumentParser(
+        prog=PROGRAM,
+        description='Run the simulator and the follower headless, as fast as possible, on '
+                    'the built-in scenarios for several follower configurations; print a '
+                    'Markdown table and write JSON.')
+    parser.add_argument('--scenarios', action='append', metavar='NAMES',
+                        help='scenarios to run, comma-separated or repeated: '
+                             + ', '.join(SCENARIOS) + ', or the path of a YAML course file '
+                             '(default: all built-in scenarios)')
+    parser.add_argument('--params-file', action='append', default=[], type=Path,
+                        metavar='FILE',
+                        help='a further configuration to compare, named by the file stem: a '
+                             'ROS 2 parameters file (its followbot_sim section, if any, applies '
+                             'to the simulator); repeatable')
+    parser.add_argument('--configs', action='append', metavar='NAMES',
+                        help='configurations to run, comma-separated or repeated (default: '
+                             + ', '.join(BUILTIN_CONFIGURATIONS) + ' and every --params-file)')
+    parser.add_argument('--jobs', type=_positive_int, default=os.cpu_count() or 1, metavar='N',
+                        help='runs at a time, each in its own process (default: the CPU count)')
+    parser.add_argument('--domain-id', type=_domain_id_option, default=None, metavar='ID',
+                        help='ROS domain of the first worker; worker k uses ID + k (default: '
+                             f'{FIRST_DOMAIN_ID} + pid % {DOMAIN_ID_SPREAD})')
+    parser.add_argument('--time-limit-s', type=_positive, default=None, metavar='SECONDS',
+                        help='simulated seconds a run may take (default: '
+                             f'{TIME_LIMIT_LAPS:g} x course length / {BOOK_SPEED_MPS:g} m/s)')
+    parser.add_argument('--stuck-after-s', type=_positive, default=DEFAULT_STUCK_AFTER_S,
+                        metavar='SECONDS',
+                        help='end a run as stuck when it progressed less than '
+                             f'{100 * STUCK_MIN_PROGRESS_M:g} cm along the line in this many '
+                             f'simulated seconds (default: {DEFAULT_STUCK_AFTER_S:g})')
+    parser.add_argument('--sim-param', action='append', default=[], metavar='NAME:=VALUE',
+                        help='set a simulator parameter for every run, such as '
+                             'camera_rate_hz:=30.0, over any params file; repeatable')
+    output = parser.add_mutually_exclusive_group()
+    output.add_argument('--json', type=Path, default=Path('scorecard.json'), metavar='PATH',
+                        help='where to write the results as JSON (default: scorecard.json)')
+    output.add_argument('--no-json', action='store_true', help='write no JSON file')
+    parser.add_argument('--node-log-level', choices=NODE_LOG_LEVELS, default='error',
+                        help="the nodes' ROS log level (default: error)")
+    options = parser.parse_args(argv)
+    try:
+        options.scenarios = select_scenarios(options.scenarios)
+        options.configurations = select_configurations(options.params_file, options.configs)
+        options.sim_parameters = [parse_sim_parameter(text) for text in options.sim_param]
+    except (ValueError, FileNotFoundError) as error:
+        parser.error(str(error))
+    runs = len(options.scenarios) * len(options.configurations)
+    options.workers = min(options.jobs, runs)
+    if options.domain_id is None:
+        options.domain_id = FIRST_DOMAIN_ID + os.getpid() % DOMAIN_ID_SPREAD
+    if options.domain_id + options.workers - 1 > MAX_DOMAIN_ID:
+        parser.error(f'--domain-id {options.domain_id} with {options.workers} workers needs '
+                     f'domains up to {options.domain_id + options.workers - 1}; the largest is '
+                     f'{MAX_DOMAIN_ID}.')
+    return options
+
+
+def _tasks(options: argparse.Namespace) -> list:
+    return [{'configuration': configuration.name, 'params_file': str(configuration.params_file),
+             'scenario': dataclasses.asdict(scenario), 'sim_parameters': options.sim_parameters,
+             'time_limit_s': options.time_limit_s, 'stuck_after_s': options.stuck_after_s,
+             'node_log_level': options.node_log_level}
+            for scenario in options.scenarios for configuration in options.configurations]
+
+
+def _run_all(tasks: list, options: argparse.Namespace) -> list:
+    """Run the tasks in a pool of worker processes; return the records in task order."""
+    spawn = multiprocessing.get_context('spawn')
+    slots = spawn.Queue()
+    for slot in range(options.workers):
+        slots.put(slot)
+    records = [None] * len(tasks)
+    with concurrent.futures.ProcessPoolExecutor(
+            max_workers=options.workers, mp_context=spawn, initializer=_init_worker,
+            initargs=(slots, options.domain_id)) as pool:
+        futures = {pool.submit(run_one, task): index for index, task in enumerate(tasks)}
+        try:
+            for done, future in enumerate(concurrent.futures.as_completed(futures), start=1):
+                index = futures[future]
+                try:
+                    records[index] = future.result()
+                except Exception as error:  # A worker died: the pool reports it per task.
+                    task = tasks[index]
+                    records[index] = {
+                        'scenario': task['scenario']['name'],
+                        'configuration': task['configuration'],
+                        'params_file': task['params_file'], 'end_reason': END_ERROR,
+                        'error': f"{type(error).__name__}: {' '.join(str(error).split())}",
+                        'metrics': None}
+                print(format_progress(records[index], done, len(tasks)), file=sys.stderr,
+                      flush=True)
+        except KeyboardInterrupt:
+            # The workers got Ctrl-C too and end their runs; drop the runs not started.
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+    return records
+
+
+def _package_version(*names) -> str | None:
+    for name in names:
+        try:
+            return importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+    return None
+
+
+def _cameras(records: list) -> str:
+    cameras = []
+    for record in records:
+        camera = record.get('camera')
+        if camera:
+            text = f"{camera['width_px']}x{camera['height_px']} at {camera['rate_hz']:g} Hz"
+            if text not in cameras:
+                cameras.append(text)
+    return ', '.join(cameras) or 'none'
+
+
+def _metadata(options: argparse.Namespace, argv: list, wall_s: float) -> dict:
+    return {
+        'date': datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds'),
+        'hostname': socket.gethostname(),
+        'command': shlex.join([PROGRAM, *argv]),
+        'python': platform.python_version(),
+        'rclpy': _package_version('ros-rclpy', 'rclpy'),
+        'rmw_implementation': rclpy.get_rmw_implementation_identifier(),
+        'mujoco': _package_version('mujoco'),
+        'configurations': {configuration.name: str(configuration.params_file)
+                           for configuration in options.configurations},
+        'scenarios': [dataclasses.asdict(scenario) for scenario in options.scenarios],
+        'options': {
+            'jobs': options.jobs, 'workers': options.workers, 'domain_id': options.domain_id,
+            'time_limit_s': options.time_limit_s, 'stuck_after_s': options.stuck_after_s,
+            'stuck_min_progress_m': STUCK_MIN_PROGRESS_M,
+            'default_time_limit': f'{TIME_LIMIT_LAPS:g} x course length / '
+                                  f'{BOOK_SPEED_MPS:g} m/s',
+            'sim_parameters': dict(options.sim_parameters),
+            'node_log_level': options.node_log_level,
+        },
+        'wall_s': wall_s,
+    }
+
+
+def main(argv=None) -> int:
+    """
+    Score the configurations on the scenarios: table on stdout, JSON file, progress on stderr.
+
+    :param argv: command-line arguments without the program name; ``sys.argv[1:]`` when None.
+    :return: the exit code: 0 when every run ran (however well the follower did), 1 when a
+        run failed with an error, 130 on Ctrl-C.
+    """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    options = parse_arguments(argv)
+    tasks = _tasks(options)
+    print(f"[{PROGRAM}] {_count(len(tasks), 'run')} "
+          f"({_count(len(options.configurations), 'configuration')} x "
+          f"{_count(len(options.scenarios), 'scenario')}) on "
+          f"{_count(options.workers, 'worker')}, ROS domains {options.domain_id}-"
+          f'{options.domain_id + options.workers - 1}.', file=sys.stderr, flush=True)
+    start_s = time.monotonic()
+    try:
+        records = _run_all(tasks, options)
+    except KeyboardInterrupt:
+        print(f'[{PROGRAM}] interrupted: no table, no JSON.', file=sys.stderr, flush=True)
+        return 130
+    wall_s = time.monotonic() - start_s
+    ratios = speedups(records)
+    for record in records:
+        record['book_lap_time_ratio'] = ratios.get((record['scenario'], record['configuration']))
+    print(format_table(records))
+    print()
+    print(f'`{shlex.join([PROGRAM, *argv])}`: camera {_cameras(records)}; '
+          f"{_count(len(records), 'run')} in {wall_s:.0f} s of wall time on "
+          f"{_count(options.workers, 'worker')}. × book: the book configuration's "
+          "lap time over this one's.")
+    if not options.no_json:
+        document = {'metadata': _metadata(options, argv, wall_s), 'runs': records}
+        options.json.write_text(json.dumps(document, indent=2) + '\n', encoding='utf-8')
+        print(f'[{PROGRAM}] results in {options.json}', file=sys.stderr, flush=True)
+    return 1 if any(record['end_reason'] == END_ERROR for record in records) else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
