@@ -6,7 +6,7 @@ Two steering laws, chosen by ``ControllerConfig.steering_law``:
 - ``'path'`` (the default): the stripes the detector saw in several bands, projected onto the
   floor, form a polyline ahead of the robot. The robot steers along the arc that reaches its
   point ``look_ahead_m`` away (pure pursuit: exact on steady bends, no offset needed to
-  turn), turns on the spot towards a point far to the side (a sharp corner), and plans its
+  turn), turns sharply towards a point far to the side (a sharp corner), and plans its
   speed on the sharpest arc to any of the points (a lateral acceleration bound, so it slows
   before a bend, not in it) and on how many bands see the line, within acceleration limits
   matched to the robot.
@@ -158,8 +158,8 @@ class ControllerConfig:
     linear_speed_mps: float = 0.7
     min_linear_speed_mps: float = 0.05
     angular_gain_radps: float = 3.2
-    look_ahead_m: float = 0.5
-    bearing_gain_radps: float = 2.0
+    look_ahead_m: float = 0.4
+    bearing_gain_radps: float = 3.0
     confidence_for_full_speed: float = 0.5
     max_lateral_acceleration_mps2: float = 0.6
     max_linear_acceleration_mps2: float = 1.0
