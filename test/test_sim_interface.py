@@ -33,7 +33,7 @@ ODOMETRY_TOLERANCE = 0.01
 STRAIGHT_SPEED_MPS = 0.3
 STRAIGHT_DRIVE_S = 4.0
 COMMAND_PERIOD_S = 0.2
-# Rows around the follower's band (3/4 of the image height, 20 rows).
+# Rows around the book's band (3/4 of the image height, 20 rows), among those the follower reads.
 BAND_ROWS = slice(350, 371)
 STEPS_PER_CALL = 10
 PHYSICS_STEP_S = 0.002
