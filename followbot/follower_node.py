@@ -309,15 +309,8 @@ class FollowerNode(Node):
     def _publish_mask(self, header, detection: Detection) -> None:
         size = (detection.image_height_px, detection.image_width_px)
         if self._mask_frame is None or self._mask_frame.shape != size:
-            self._mask_frame = np.zeros(size, dtype=np.uint8)
-        self._mask_frame[:] = 0
-        band_masks = self._detector.last_mask
-        first_row = 0
-        for band in detection.bands:
-            rows = band.bottom_px - band.top_px
-            self._mask_frame[band.top_px:band.bottom_px] = band_masks[first_row:first_row + rows]
-            first_row += rows
-        mask_msg = array_to_image(self._mask_frame, 'mono8')
+            self._mask_frame = np.empty(size, dtype=np.uint8)
+        mask_msg = array_to_image(self._detector.draw_mask(self._mask_frame), 'mono8')
         mask_msg.header = header
         self._mask_publisher.publish(mask_msg)
 

@@ -267,6 +267,22 @@ class LineDetector:
         """
         return self._mask_rows
 
+    def draw_mask(self, out):
+        """
+        Draw the last detect call's band masks at their rows of a full-size image.
+
+        :param out: a (H, W) uint8 array the size of the last image; rows outside the bands
+            become 0.
+        :return: ``out``.
+        :raises ValueError: before any detect call, or if ``out`` is not the image's size.
+        """
+        if self._image_shape is None or out.shape != self._image_shape:
+            raise ValueError(f'The mask needs an array of the last image size '
+                             f'{self._image_shape}, got {out.shape}.')
+        out[:] = 0
+        out[self._band_row_index] = self._mask_rows
+        return out
+
     def reset(self):
         """Forget where the line was seen: the next image is searched from the centre."""
         self._previous_x_px = [math.nan] * len(self._bands)

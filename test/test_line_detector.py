@@ -634,6 +634,30 @@ def test_last_mask_stacks_the_band_rows_nearest_first():
         assert np.all(band_mask[:, stripe] == 255)
 
 
+def test_draw_mask_puts_the_band_masks_at_their_rows_of_the_image():
+    detector = LineDetector()
+    image = vertical_line_image(200)
+    detector.detect(image)
+    # Whatever the buffer held before is overwritten.
+    mask = detector.draw_mask(np.full((HEIGHT_PX, WIDTH_PX), 7, np.uint8))
+
+    expected = np.zeros((HEIGHT_PX, WIDTH_PX), np.uint8)
+    for top, bottom in DEFAULT_BANDS:
+        expected[top:bottom] = np.where(np.all(image[top:bottom] == bgr(LIT_YELLOW_RGB),
+                                               axis=2), 255, 0)
+    np.testing.assert_array_equal(mask, expected)
+
+
+@pytest.mark.parametrize('shape', [(HEIGHT_PX, WIDTH_PX - 1), (HEIGHT_PX // 2, WIDTH_PX)])
+def test_draw_mask_refuses_an_array_not_the_image_size(shape):
+    detector = LineDetector()
+    with pytest.raises(ValueError, match='image size'):
+        detector.draw_mask(np.zeros((HEIGHT_PX, WIDTH_PX), np.uint8))  # before any image
+    detector.detect(floor_image())
+    with pytest.raises(ValueError, match='image size'):
+        detector.draw_mask(np.zeros(shape, np.uint8))
+
+
 def test_detect_does_not_modify_the_image():
     image = vertical_line_image(200)
     original = image.copy()
