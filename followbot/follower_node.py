@@ -23,6 +23,7 @@ from followbot.image_conversion import (array_to_image, image_to_array, ImageCon
 from followbot.line_detector import Detection, DetectorConfig, draw_debug, LineDetector
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec, specs_for_config
+from followbot_sim import messages
 from geometry_msgs.msg import Twist
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -153,8 +154,8 @@ class FollowerNode(Node):
             ``parameter_overrides``, ...).
         """
         super().__init__('follower', **kwargs)
-        self._parameter_values = declare_parameters(self, FOLLOWER_PARAMETERS)
-        self._settings = FollowerSettings.from_parameters(self._parameter_values)
+        self._settings = FollowerSettings.from_parameters(
+            declare_parameters(self, FOLLOWER_PARAMETERS))
         self._detector = LineDetector(self._settings.detector)
         self._controller = LineFollowingController(self._settings.controller)
         self._pending_settings = None
@@ -196,8 +197,9 @@ class FollowerNode(Node):
                 'recoveries': self._recoveries}
 
     def _check_parameters(self, parameters: list) -> SetParametersResult:
-        # rclpy has already checked each value's type and range; this checks them together.
-        values = dict(self._parameter_values)
+        # rclpy has already checked each value's type and range; this checks them together
+        # with the values that stay as they are.
+        values = {name: self.get_parameter(name).value for name in FOLLOWER_PARAMETERS}
         values.update({parameter.name: parameter.value for parameter in parameters})
         try:
             self._pending_settings = FollowerSettings.from_parameters(values)
@@ -206,8 +208,6 @@ class FollowerNode(Node):
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters: list) -> None:
-        self._parameter_values.update(
-            {parameter.name: parameter.value for parameter in parameters})
         settings, self._settings = self._settings, self._pending_settings
         if settings.detector != self._settings.detector:
             self._detector = LineDetector(self._settings.detector)
@@ -239,7 +239,7 @@ class FollowerNode(Node):
         """Detect the line in a camera frame and publish the command it calls for."""
         self._last_image_time = self.get_clock().now()
         self._waiting_for_images = False
-        stamp_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp_s = messages.seconds(msg.header.stamp)
         try:
             image = image_to_array(msg)
         except ImageConversionError as error:
@@ -248,21 +248,22 @@ class FollowerNode(Node):
             self._publish(self._controller.update(Detection.nothing_seen(), stamp_s))
             return
         detection = self._detector.detect(image, msg.encoding)
-        floor_xy_m = self._floor_points(detection)
-        if floor_xy_m is None and self._settings.controller.steering_law == 'path':
-            self._report_once(
-                f'Waiting for {self._camera_info_subscription.topic_name}: the path law '
-                'needs the camera intrinsics to put the line on the floor.', error=False)
-            self._publish(LineFollowingController.stop_command())
-            return
+        # Only the path law steers by floor points; the proportional law needs no projection.
+        floor_xy_m = None
+        if self._settings.controller.steering_law == 'path':
+            if self._camera_geometry is None:
+                self._report_once(
+                    f'Waiting for {self._camera_info_subscription.topic_name}: the path law '
+                    'needs the camera intrinsics to put the line on the floor.', error=False)
+                self._publish(LineFollowingController.stop_command())
+                return
+            floor_xy_m = self._floor_points(detection)
         command = self._controller.update(detection, stamp_s, floor_xy_m)
         self._publish(command)
         self._count_frame(detection.found)
         self._publish_views(msg, image, detection, command)
 
     def _floor_points(self, detection: Detection):
-        if self._camera_geometry is None:
-            return None
         seen = detection.seen_bands
         x_m, y_m = self._camera_geometry.pixels_to_floor(
             [band.centroid_x_px for band in seen], [band.centroid_y_px for band in seen])
