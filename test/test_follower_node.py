@@ -14,6 +14,7 @@ from conftest import child_environment, NodeHarness
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.follower_node import FOLLOWER_PARAMETERS, FollowerNode
 from followbot.image_conversion import array_to_image
+from followbot_sim import messages
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS
 from geometry_msgs.msg import Twist
 import numpy as np
@@ -62,7 +63,7 @@ def camera_info() -> CameraInfo:
 class Harness(NodeHarness):
     """A follower, and a client publishing camera frames and recording what comes back."""
 
-    def __init__(self, context, **follower_options):
+    def __init__(self, context, send_camera_info=True, **follower_options):
         super().__init__(context, FollowerNode(context=context, **follower_options),
                          'follower_test_client')
         self.follower = self.node
@@ -72,18 +73,17 @@ class Harness(NodeHarness):
         self.parameters = AsyncParameterClient(self.client, 'follower')
         self.time_s = 0.0
         self.cmd_vels = []
-        self.debug_images = []
         self.client.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
         self.spin_until(lambda: self.images.get_subscription_count() > 0
                         and self.camera_infos.get_subscription_count() > 0)
-        self.camera_infos.publish(camera_info())
-        self.spin_until(lambda: self.follower._camera_geometry is not None)
+        if send_camera_info:
+            self.camera_infos.publish(camera_info())
+            self.spin_until(lambda: self.follower._camera_geometry is not None)
 
     def send(self, msg):
         """Publish a frame stamped 50 ms after the previous one; return the command it causes."""
         self.time_s += FRAME_PERIOD_S
-        msg.header.stamp.sec = int(self.time_s)
-        msg.header.stamp.nanosec = int(round((self.time_s % 1.0) * 1e9))
+        msg.header.stamp = messages.stamp(self.time_s)
         count = len(self.cmd_vels)
         self.images.publish(msg)
         self.spin_until(lambda: len(self.cmd_vels) > count)
@@ -159,14 +159,8 @@ def test_turn_rate_is_bounded(book_harness):
 
 
 def test_waits_for_camera_info_before_using_the_path_law(ros_context):
-    harness = Harness.__new__(Harness)
-    NodeHarness.__init__(harness, ros_context, FollowerNode(context=ros_context), 'client')
-    harness.follower = harness.node
-    harness.images = harness.client.create_publisher(Image, 'camera/rgb/image_raw', 10)
-    harness.cmd_vels, harness.time_s = [], 0.0
-    harness.client.create_subscription(Twist, 'cmd_vel', harness.cmd_vels.append, 10)
+    harness = Harness(ros_context, send_camera_info=False)
     try:
-        harness.spin_until(lambda: harness.images.get_subscription_count() > 0)
         for _ in range(3):
             assert harness.send(camera_frame(WIDTH_PX // 2)) == Twist()
         harness.spin_until(lambda: any('camera_info' in log.msg for log in harness.logs))
@@ -205,11 +199,11 @@ def test_bad_frames_are_reported_once_and_never_drive(harness):
 def test_views_only_while_someone_watches(harness):
     harness.send(camera_frame(WIDTH_PX // 2))
     received = {'debug_image': [], 'mask': [], 'status': []}
-    for name, messages in received.items():
+    for name, received_on_topic in received.items():
         assert harness.follower.count_subscribers(f'/follower/{name}') == 0
         harness.client.create_subscription(
             DiagnosticArray if name == 'status' else Image, f'/follower/{name}',
-            messages.append, 10)
+            received_on_topic.append, 10)
         harness.spin_until(lambda: harness.follower.count_subscribers(f'/follower/{name}'))
     frame = camera_frame(WIDTH_PX // 2 - 100)
     harness.send(frame)
