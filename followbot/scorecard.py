@@ -450,27 +450,26 @@ def _init_worker(slots, first_domain_id: int) -> None:
         signal.signal(stop_signal, lambda signum, frame: _worker['stop'].set())
 
 
-def _simulator_overrides(task: dict) -> list:
-    scenario = task['scenario']
+def _simulator_overrides(scenario: Scenario, sim_parameters) -> list:
     values = {
-        **dict(task['sim_parameters']),
+        **dict(sim_parameters),
         'real_time_factor': 0.0,
         'start_paused': False,
         'run_duration_s': 0.0,
-        'course': scenario['course'],
-        'lighting_zones': scenario['lighting_zones'],
-        'camera_noise_stddev_levels': scenario['camera_noise_stddev_levels'],
-        'random_seed': scenario['random_seed'],
+        'course': scenario.course,
+        'lighting_zones': scenario.lighting_zones,
+        'camera_noise_stddev_levels': scenario.camera_noise_stddev_levels,
+        'random_seed': scenario.random_seed,
     }
     return [Parameter(name, value=value) for name, value in values.items()]
 
 
-def _wait_until_connected(executor, simulator, follower) -> None:
+def _wait_until_connected(executor, simulator, follower, stop_requested) -> None:
     """Spin until the follower hears the camera and the simulator hears the follower."""
     deadline_s = time.monotonic() + CONNECT_TIMEOUT_S
     while not (simulator.count_subscribers(IMAGE_TOPIC) > 0
                and follower.count_subscribers(CMD_VEL_TOPIC) > 0):
-        if _worker['stop'].is_set():
+        if stop_requested.is_set():
             return  # The run loop ends the run as interrupted.
         if time.monotonic() > deadline_s:
             raise RuntimeError(f'The follower and the simulator did not find each other within '
@@ -478,12 +477,33 @@ def _wait_until_connected(executor, simulator, follower) -> None:
         executor.spin_once(timeout_sec=CONNECT_POLL_S)
 
 
-def _drive(task: dict, context: Context) -> dict:
-    """Build both nodes, run until the run ends, and collect the figures."""
+def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
+                 time_limit_s: float | None = None,
+                 stuck_after_s: float = DEFAULT_STUCK_AFTER_S,
+                 stop_requested: threading.Event | None = None) -> dict:
+    """
+    Run the simulator and the follower on a scenario until a lap, the time limit or a stop.
+
+    Both nodes are made on the given context, so the follower takes its parameters from the
+    context's arguments (``--params-file``) and otherwise its defaults.
+
+    :param context: an initialised rclpy Context, on a domain of its own.
+    :param scenario: the course and the camera's conditions.
+    :param sim_parameters: further (name, value) simulator parameters.
+    :param time_limit_s: simulated seconds at most; None for :func:`default_time_limit_s`.
+    :param stuck_after_s: simulated seconds without progress that end the run as stuck.
+    :param stop_requested: an Event that ends the run as interrupted when set.
+    :return: ``end_reason``, ``time_limit_s``, ``metrics`` (see :func:`run_metrics`),
+        ``lap_tracker`` and ``line_statistics`` (the raw figures), ``wall_s`` (the spin
+        loop), ``simulated_per_wall`` and ``camera``.
+    :raises RuntimeError: if the nodes do not find each other.
+    """
+    stop_requested = stop_requested or threading.Event()
     nodes = []
     executor = SingleThreadedExecutor(context=context)
     try:
-        simulator = SimulatorNode(context=context, parameter_overrides=_simulator_overrides(task))
+        simulator = SimulatorNode(context=context, parameter_overrides=_simulator_overrides(
+            scenario, sim_parameters))
         nodes.append(simulator)
         follower = FollowerNode(context=context, parameter_overrides=[
             Parameter('use_sim_time', value=True)])
@@ -491,11 +511,11 @@ def _drive(task: dict, context: Context) -> dict:
         # Simulated time starts only once both ends are connected: no lap time is spent
         # waiting for discovery with the robot standing still.
         executor.add_node(follower)
-        _wait_until_connected(executor, simulator, follower)
+        _wait_until_connected(executor, simulator, follower, stop_requested)
         executor.add_node(simulator)
         world, tracker = simulator.world, simulator.lap_tracker
-        time_limit_s = task['time_limit_s'] or default_time_limit_s(world.course.length_m)
-        stuck = StuckDetector(task['stuck_after_s'])
+        time_limit_s = time_limit_s or default_time_limit_s(world.course.length_m)
+        stuck = StuckDetector(stuck_after_s)
         start_s = time.monotonic()
         while True:
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
@@ -505,7 +525,7 @@ def _drive(task: dict, context: Context) -> dict:
                 end_reason = END_TIME_LIMIT
             elif stuck.update(world.time_s, tracker.progress_m):
                 end_reason = END_STUCK
-            elif _worker['stop'].is_set():
+            elif stop_requested.is_set():
                 end_reason = END_INTERRUPTED
             else:
                 continue
@@ -558,7 +578,9 @@ def run_one(task: dict) -> dict:
                    args=['--ros-args', '--log-level', task['node_log_level'],
                          '--params-file', task['params_file']],
                    signal_handler_options=SignalHandlerOptions.NO)
-        record.update(_drive(task, context))
+        record.update(run_scenario(
+            context, Scenario(**task['scenario']), task['sim_parameters'],
+            task['time_limit_s'], task['stuck_after_s'], _worker['stop']))
         record['setup_wall_s'] = time.monotonic() - start_s - record['wall_s']
     except Exception as error:  # Any failure is this run's result, reported in its row.
         message = ' '.join(str(error).split()) or 'no message'

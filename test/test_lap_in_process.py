@@ -2,16 +2,16 @@
 The simulator node and the follower node lap a course in one executor.
 
 Both nodes run in this process on a private Context, talking over real DDS topics exactly as
-they do in two processes. The simulator's ground truth (its LapTracker) judges the run.
+they do in two processes, driven by the scorecard's runner. The simulator's ground truth (its
+LapTracker) judges the run.
 """
 
 import cv2
-from followbot.follower_node import FollowerNode
+from followbot.controller import ControllerConfig
+from followbot.scorecard import END_LAP, run_scenario, Scenario
 from followbot_sim.course import FLOOR_GREY, LINE_RGB, make_course
-from followbot_sim.sim_node import SimulatorNode
+from followbot_sim.course_file import load_course
 import numpy as np
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
 
 # The robot's centre must stay over the painted line, within half its 0.19 m width of the centre
 # line, for the whole lap: what a person watching calls "following the line".
@@ -33,26 +33,12 @@ def lap(context, course: str) -> tuple:
     :return: the score (the simulator's LapTracker summary and the follower's line
         statistics) and the course.
     """
-    simulator = SimulatorNode(context=context, parameter_overrides=[
-        Parameter('real_time_factor', value=0.0), Parameter('course', value=course)])
-    follower = FollowerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True)])
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(simulator)
-    executor.add_node(follower)
-    tracker = simulator.lap_tracker
-    course = simulator.world.course
-    speed_mps = follower.get_parameter('linear_speed_mps').value
-    time_limit_s = LAP_TIME_MARGIN * course.length_m / speed_mps
-    try:
-        while tracker.laps_completed < 1 and simulator.world.time_s < time_limit_s:
-            executor.spin_once(timeout_sec=1.0)
-    finally:
-        executor.shutdown()
-        statistics = follower.line_statistics
-        follower.destroy_node()
-        simulator.destroy_node()
-    return {**tracker.summary(), **statistics}, course
+    course_model = load_course(course)
+    time_limit_s = (LAP_TIME_MARGIN * course_model.length_m
+                    / ControllerConfig().linear_speed_mps)
+    run = run_scenario(context, Scenario(course, course), time_limit_s=time_limit_s)
+    assert run['end_reason'] == END_LAP, run
+    return {**run['lap_tracker'], **run['line_statistics']}, course_model
 
 
 def assert_followed_the_line(summary: dict, course) -> None:
