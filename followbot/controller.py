@@ -362,7 +362,7 @@ class LineFollowingController:
             # Stopping for a lost line is not delayed by the acceleration limit: driving on
             # blind is worse than a hard stop.
             linear_mps = 0.0
-        angular_mps = _clamp(target.angular_radps, previous.angular_radps - angular_step,
-                             previous.angular_radps + angular_step)
+        angular_radps = _clamp(target.angular_radps, previous.angular_radps - angular_step,
+                               previous.angular_radps + angular_step)
         limit = config.max_angular_speed_radps
-        return VelocityCommand(linear_mps, _clamp(angular_mps, -limit, limit))
+        return VelocityCommand(linear_mps, _clamp(angular_radps, -limit, limit))
