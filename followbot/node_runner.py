@@ -5,7 +5,7 @@ import threading
 
 import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 # How often the spin loop returns to Python, so that a stop request is seen even when no
@@ -36,6 +36,11 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
     for stop_signal in STOP_SIGNALS:
         signal.signal(stop_signal, lambda signum, frame: stop_requested.set())
     node = None
+    # An executor of our own, not rclpy.spin_once's global one: shutting it down drops its
+    # half-consumed wait generator, which may hold the node's handles in use (it yields ready
+    # waitables, such as a subscription's matched event, from inside the wait set's context).
+    # Left alive, that generator makes Node.destroy_node wait forever for the handles.
+    executor = SingleThreadedExecutor()
     try:
         try:
             node = node_class()
@@ -44,12 +49,14 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
             # machine that lacks something: say which, not a traceback.
             rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
             raise SystemExit(2)
+        executor.add_node(node)
         while (rclpy.ok() and not stop_requested.is_set()
                and not getattr(node, 'finished', False)):
-            rclpy.spin_once(node, timeout_sec=SPIN_POLL_S)
+            executor.spin_once(timeout_sec=SPIN_POLL_S)
     except ExternalShutdownException:
         pass
     finally:
+        executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
