@@ -20,6 +20,7 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
+from followbot.node_runner import StopSignals
 from followbot_sim import messages
 from followbot_sim.course_library import COURSES
 from followbot_sim.sim_node import SCORE_STATUS_NAME
@@ -228,9 +229,7 @@ def main(argv=None) -> int:
     domain_id = int(environment.get('ROS_DOMAIN_ID') or '0')
 
     # Ctrl-C reaches this process only (children run in their own sessions): forward it.
-    interrupted = threading.Event()
-    signal.signal(signal.SIGINT, lambda signum, frame: interrupted.set())
-    signal.signal(signal.SIGTERM, lambda signum, frame: interrupted.set())
+    interrupted = StopSignals().install()
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id,

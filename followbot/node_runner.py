@@ -1,7 +1,6 @@
 """Run one node in its own process the same way for every followbot executable."""
 
 import signal
-import threading
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -12,6 +11,39 @@ from rclpy.signals import SignalHandlerOptions
 # message comes.
 SPIN_POLL_S = 0.1
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class StopSignals:
+    """
+    Remember that SIGINT or SIGTERM came, in a handler that takes no lock.
+
+    A handler that sets a threading.Event takes the Event's lock; a second signal arriving
+    while the first handler holds it deadlocks the process in its own handler (seen: a
+    simulator that never exited after its launcher was killed). Appending to a list is atomic.
+    SIGINT is handled too: a shell starts background jobs with SIGINT ignored, and Python then
+    keeps it ignored, so `kill -INT` (what ros2 launch sends) would not stop the process.
+    """
+
+    def __init__(self):
+        """Make a record of no signals; :meth:`install` starts listening."""
+        self._received = []
+
+    def install(self):
+        """
+        Handle SIGINT and SIGTERM in this process from now on, by recording them.
+
+        :return: this object.
+        """
+        for stop_signal in STOP_SIGNALS:
+            signal.signal(stop_signal, self._record)
+        return self
+
+    def _record(self, signum, frame):
+        self._received.append(signum)
+
+    def is_set(self) -> bool:
+        """Return whether a stop signal came."""
+        return bool(self._received)
 
 
 def run_node(node_class, args=None, startup_errors=()) -> None:
@@ -30,11 +62,7 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
         reported as one line, like invalid parameters.
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop_requested = threading.Event()
-    # Set SIGINT too: a shell starts background jobs with SIGINT ignored, and Python then
-    # keeps it ignored, so `kill -INT` (what ros2 launch sends) would not stop the node.
-    for stop_signal in STOP_SIGNALS:
-        signal.signal(stop_signal, lambda signum, frame: stop_requested.set())
+    stop_signals = StopSignals().install()
     node = None
     # An executor of our own, not rclpy.spin_once's global one: shutting it down drops its
     # half-consumed wait generator, which may hold the node's handles in use (it yields ready
@@ -50,7 +78,7 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
             rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
             raise SystemExit(2)
         executor.add_node(node)
-        while (rclpy.ok() and not stop_requested.is_set()
+        while (rclpy.ok() and not stop_signals.is_set()
                and not getattr(node, 'finished', False)):
             executor.spin_once(timeout_sec=SPIN_POLL_S)
     except ExternalShutdownException:

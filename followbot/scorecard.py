@@ -27,13 +27,12 @@ import os
 from pathlib import Path
 import platform
 import shlex
-import signal
 import socket
 import sys
-import threading
 import time
 
 from followbot.follower_node import FollowerNode
+from followbot.node_runner import StopSignals
 from followbot.package_files import share_file
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
@@ -438,7 +437,7 @@ def format_progress(run: dict, done: int, total: int) -> str:
 
 
 # Set in each worker process by _init_worker.
-_worker = {'domain_id': None, 'stop': threading.Event()}
+_worker = {'domain_id': None, 'stop': StopSignals()}
 
 
 def _init_worker(slots, first_domain_id: int) -> None:
@@ -446,8 +445,7 @@ def _init_worker(slots, first_domain_id: int) -> None:
     _worker['domain_id'] = first_domain_id + slots.get()
     os.environ['ROS_DOMAIN_ID'] = str(_worker['domain_id'])
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    for stop_signal in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(stop_signal, lambda signum, frame: _worker['stop'].set())
+    _worker['stop'].install()
 
 
 def _simulator_overrides(scenario: Scenario, sim_parameters) -> list:
@@ -480,7 +478,7 @@ def _wait_until_connected(executor, simulator, follower, stop_requested) -> None
 def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
                  time_limit_s: float | None = None,
                  stuck_after_s: float = DEFAULT_STUCK_AFTER_S,
-                 stop_requested: threading.Event | None = None) -> dict:
+                 stop_requested: StopSignals | None = None) -> dict:
     """
     Run the simulator and the follower on a scenario until a lap, the time limit or a stop.
 
@@ -492,13 +490,14 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
     :param sim_parameters: further (name, value) simulator parameters.
     :param time_limit_s: simulated seconds at most; None for :func:`default_time_limit_s`.
     :param stuck_after_s: simulated seconds without progress that end the run as stuck.
-    :param stop_requested: an Event that ends the run as interrupted when set.
+    :param stop_requested: a StopSignals, or anything with ``is_set()``, that ends the run as
+        interrupted when set.
     :return: ``end_reason``, ``time_limit_s``, ``metrics`` (see :func:`run_metrics`),
         ``lap_tracker`` and ``line_statistics`` (the raw figures), ``wall_s`` (the spin
         loop), ``simulated_per_wall`` and ``camera``.
     :raises RuntimeError: if the nodes do not find each other.
     """
-    stop_requested = stop_requested or threading.Event()
+    stop_requested = stop_requested or StopSignals()
     nodes = []
     executor = SingleThreadedExecutor(context=context)
     try:
