@@ -977,6 +977,18 @@ def test_reset_robot_stops_the_motors(world, course):
     assert world.robot_pose() == pytest.approx(course.start_pose(), abs=1e-4)
 
 
+def test_reset_robot_to_a_pose_puts_it_there_at_rest(world, course):
+    x_m, y_m, heading_rad = course.point_at(5.0)
+    pose = (x_m + 0.03, y_m - 0.02, heading_rad + 0.1)
+    world.set_twist(CRUISE_SPEED_MPS, 0.5)
+    world.step(1.0)
+    world.reset_robot(pose)
+    assert world.robot_pose() == pytest.approx(pose)
+    assert world.robot_twist() == pytest.approx((0.0, 0.0))
+    world.step(0.5)
+    assert world.robot_pose() == pytest.approx(pose, abs=1e-4)
+
+
 def test_reset_after_reset_robot_restarts_the_clock(world):
     world.step(0.5)
     world.reset_robot()
