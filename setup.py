@@ -14,7 +14,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/models', glob('models/*.xml')),
-        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.xml')),
     ],
     # A ROS package lists only setuptools here: on a Jazzy system rclpy, the messages,
     # NumPy, OpenCV and MuJoCo come from package.xml via rosdep. Without ROS, the pinned

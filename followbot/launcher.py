@@ -21,6 +21,8 @@ import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
 from followbot.node_runner import StopSignals
+from followbot.transport import (environment_with_profile, FASTDDS_PROFILE_VARIABLE,
+                                 keep_large_buffers)
 from followbot_sim import messages
 from followbot_sim.course_library import COURSES
 from followbot_sim.sim_node import SCORE_STATUS_NAME
@@ -64,6 +66,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument('--real-time-factor', type=float, default=1.0, metavar='FACTOR',
                         help='simulated seconds per wall second; 0 = as fast as the machine '
                              'allows (default: 1)')
+    parser.add_argument('--lockstep', action='store_true',
+                        help='let the follower drive time: the simulator waits for the '
+                             'command answering each camera frame (runs are reproducible)')
     parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
                         help="ROS_DOMAIN_ID for both nodes (default: the environment's, or 0)")
     parser.add_argument('--course', default='book_loop',
@@ -222,7 +227,11 @@ def main(argv=None) -> int:
     :return: the exit code: 0 when both nodes ran and stopped cleanly.
     """
     options = parse_arguments(argv)
-    environment = dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+    # The Fast DDS profile for images, here too, before this process makes its participant.
+    environment, profile = environment_with_profile(
+        dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0'))
+    os.environ[FASTDDS_PROFILE_VARIABLE] = profile
+    keep_large_buffers()
     if options.domain_id is not None:
         environment['ROS_DOMAIN_ID'] = str(options.domain_id)
     # ROS reads an empty ROS_DOMAIN_ID as the default domain, 0.
@@ -241,12 +250,15 @@ def main(argv=None) -> int:
               else 'until Ctrl-C')
     pace = (f'real-time factor {options.real_time_factor:g}' if options.real_time_factor
             else 'as fast as possible')
+    if options.lockstep:
+        pace += ', in lockstep'
     print(f'[followbot] ROS_DOMAIN_ID={domain_id}; course {options.course}; running {length}, '
-          f'{pace}.', flush=True)
+          f'{pace}; Fast DDS profile {profile}.', flush=True)
     simulator = ChildProcess('sim', _node_command('followbot_sim.sim_node', {
         'course': options.course,
         'lighting_zones': 'true' if options.lighting else 'false',
         'real_time_factor': float(options.real_time_factor),
+        'lockstep': 'true' if options.lockstep else 'false',
         'run_duration_s': float(options.duration),
         'score_period_s': 1.0,
     }), environment)

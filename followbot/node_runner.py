@@ -2,6 +2,7 @@
 
 import signal
 
+from followbot.transport import keep_large_buffers
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -61,6 +62,8 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
     :param startup_errors: further exception types that mean "cannot start here" and are
         reported as one line, like invalid parameters.
     """
+    # Before rclpy allocates anything: image buffers are then reused, not re-mapped per frame.
+    keep_large_buffers()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_signals = StopSignals().install()
     node = None
