@@ -23,8 +23,9 @@ from followbot.image_conversion import (array_to_image, image_to_array, ImageCon
 from followbot.line_detector import Detection, DetectorConfig, draw_debug, LineDetector
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec, specs_for_config
+from followbot_sim import frames
 from followbot_sim import messages
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
@@ -112,6 +113,11 @@ FOLLOWER_PARAMETERS = {
     'image_timeout_s': ParameterSpec(
         0.5, 'Stop when no camera image came for this long (node clock, so simulated time '
         'under use_sim_time).', 0.05, 10.0),
+    # Read-only: a publisher's message type cannot change while the node runs.
+    'cmd_vel_stamped': ParameterSpec(
+        False, 'Publish cmd_vel as geometry_msgs/TwistStamped, stamped with the camera image '
+        "each command answers (as Jazzy's Nav2 and ros2_control take it), instead of Twist.",
+        read_only=True),
 }
 
 
@@ -154,8 +160,9 @@ class FollowerNode(Node):
             ``parameter_overrides``, ...).
         """
         super().__init__('follower', **kwargs)
-        self._settings = FollowerSettings.from_parameters(
-            declare_parameters(self, FOLLOWER_PARAMETERS))
+        parameters = declare_parameters(self, FOLLOWER_PARAMETERS)
+        self._settings = FollowerSettings.from_parameters(parameters)
+        self._cmd_vel_stamped = parameters['cmd_vel_stamped']
         self._detector = LineDetector(self._settings.detector)
         self._controller = LineFollowingController(self._settings.controller)
         self._pending_settings = None
@@ -164,14 +171,17 @@ class FollowerNode(Node):
 
         self._camera_matrix = None
         self._camera_geometry = None
-        self._cmd_vel_publisher = self.create_publisher(Twist, 'cmd_vel', 10)
+        self._cmd_vel_publisher = self.create_publisher(
+            TwistStamped if self._cmd_vel_stamped else Twist, 'cmd_vel', 10)
         self._debug_image_publisher = self.create_publisher(Image, '~/debug_image', 1)
         self._mask_publisher = self.create_publisher(Image, '~/mask', 1)
         self._status_publisher = self.create_publisher(DiagnosticArray, '~/status', 10)
-        self._image_subscription = self.create_subscription(
-            Image, 'camera/rgb/image_raw', self.image_callback, IMAGE_QOS)
+        # camera_info is subscribed first: when it and an image are ready together, the
+        # executor then takes the intrinsics before the image that needs them.
         self._camera_info_subscription = self.create_subscription(
             CameraInfo, 'camera/rgb/camera_info', self.camera_info_callback, IMAGE_QOS)
+        self._image_subscription = self.create_subscription(
+            Image, 'camera/rgb/image_raw', self.image_callback, IMAGE_QOS)
         self._image_watch_timer = self.create_timer(IMAGE_WATCH_PERIOD_S,
                                                     self.image_watch_callback)
         self._last_image_time = self.get_clock().now()
@@ -245,7 +255,8 @@ class FollowerNode(Node):
         except ImageConversionError as error:
             self._report_once(f'Cannot use camera image: {error}')
             # Nothing seen: the controller stops or searches, it never drives on blind.
-            self._publish(self._controller.update(Detection.nothing_seen(), stamp_s))
+            self._publish(self._controller.update(Detection.nothing_seen(), stamp_s),
+                          msg.header.stamp)
             return
         detection = self._detector.detect(image, msg.encoding)
         # Only the path law steers by floor points; the proportional law needs no projection.
@@ -255,11 +266,11 @@ class FollowerNode(Node):
                 self._report_once(
                     f'Waiting for {self._camera_info_subscription.topic_name}: the path law '
                     'needs the camera intrinsics to put the line on the floor.', error=False)
-                self._publish(LineFollowingController.stop_command())
+                self._publish(LineFollowingController.stop_command(), msg.header.stamp)
                 return
             floor_xy_m = self._floor_points(detection)
         command = self._controller.update(detection, stamp_s, floor_xy_m)
-        self._publish(command)
+        self._publish(command, msg.header.stamp)
         self._count_frame(detection.found)
         self._publish_views(msg, image, detection, command)
 
@@ -350,11 +361,18 @@ class FollowerNode(Node):
                                  if self._settings.controller.lost_line_behaviour == 'search'
                                  else 'stopping.'))
 
-    def _publish(self, command: VelocityCommand) -> None:
+    def _publish(self, command: VelocityCommand, stamp=None) -> None:
         twist = Twist()
         twist.linear.x = float(command.linear_mps)
         twist.angular.z = float(command.angular_radps)
-        self._cmd_vel_publisher.publish(twist)
+        if not self._cmd_vel_stamped:
+            self._cmd_vel_publisher.publish(twist)
+            return
+        stamped = TwistStamped(twist=twist)
+        # The image a command answers stamps it; commands of no image (stops), the clock.
+        stamped.header.stamp = stamp if stamp is not None else self.get_clock().now().to_msg()
+        stamped.header.frame_id = frames.BASE_FOOTPRINT_FRAME
+        self._cmd_vel_publisher.publish(stamped)
 
     def destroy_node(self):
         """Stop the robot (a zero Twist, acknowledged if possible), then destroy the node."""

@@ -34,6 +34,7 @@ import time
 from followbot.follower_node import FollowerNode
 from followbot.node_runner import StopSignals
 from followbot.package_files import share_file
+from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS, SimulatorNode
@@ -76,7 +77,8 @@ LIGHT_NOISE_STDDEV_LEVELS = 24.0
 LIGHT_NOISE_SEED = 1
 # Simulator parameters the scorecard sets for every run; --sim-param may not change them.
 SCORECARD_SIM_PARAMETERS = ('course', 'lighting_zones', 'camera_noise_stddev_levels',
-                            'random_seed', 'real_time_factor', 'start_paused', 'run_duration_s')
+                            'random_seed', 'real_time_factor', 'lockstep', 'start_paused',
+                            'run_duration_s')
 # ROS log levels for the nodes: quiet by default, as several runs share one terminal.
 NODE_LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
 # How a --sim-param error names the type a simulator parameter takes.
@@ -445,13 +447,17 @@ def _init_worker(slots, first_domain_id: int) -> None:
     _worker['domain_id'] = first_domain_id + slots.get()
     os.environ['ROS_DOMAIN_ID'] = str(_worker['domain_id'])
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    keep_large_buffers()
     _worker['stop'].install()
 
 
 def _simulator_overrides(scenario: Scenario, sim_parameters) -> list:
     values = {
         **dict(sim_parameters),
+        # As fast as the machine allows, every frame answered before time goes on: the
+        # figures do not depend on the machine or its load.
         'real_time_factor': 0.0,
+        'lockstep': True,
         'start_paused': False,
         'run_duration_s': 0.0,
         'course': scenario.course,

@@ -134,6 +134,16 @@ class CommandWatchdog:
             return 0.0, 0.0
         return self._command
 
+    def expires_at_s(self) -> float:
+        """
+        Return when the command in force stops applying, so that physics may run to then.
+
+        :return: simulated time in seconds; infinity when no command is in force.
+        """
+        if self._received_at_s is None:
+            return math.inf
+        return self._received_at_s + self._timeout_s
+
     def reset(self) -> None:
         """Forget the last command."""
         self._command = (0.0, 0.0)

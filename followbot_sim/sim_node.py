@@ -64,6 +64,14 @@ SIMULATOR_PARAMETERS = {
         2 ** 31 - 1, read_only=True),
     'real_time_factor': ParameterSpec(
         1.0, 'Simulated seconds per wall second; 0 runs as fast as possible.', 0.0, 100.0),
+    'lockstep': ParameterSpec(
+        False, 'Let the follower drive time: after each camera frame, wait for the cmd_vel '
+        'that answers it before simulating on, and hold time while no node subscribes to the '
+        'camera or publishes cmd_vel. Runs then give the same trajectory on any machine, '
+        'under any load.', read_only=True),
+    'lockstep_timeout_s': ParameterSpec(
+        1.0, 'Lockstep: longest wait (wall time) for the command answering a camera frame; '
+        'after it the robot drives on with its last command.', 0.01, 60.0, read_only=True),
     'start_paused': ParameterSpec(
         False, 'Start paused: time advances only through the step service until unpaused.',
         read_only=True),
@@ -130,6 +138,8 @@ MAX_PACING_LAG_S = 0.5
 TRAIL_SPACING_M = 0.01
 # How often the node looks for cmd_vel publishers of the other message type (wall time).
 CMD_VEL_TYPE_CHECK_PERIOD_S = 2.0
+# Lockstep: how often a held simulator looks for its follower (wall time).
+LOCKSTEP_PARTNER_CHECK_PERIOD_S = 0.05
 TWIST_TYPES = {False: 'geometry_msgs/msg/Twist', True: 'geometry_msgs/msg/TwistStamped'}
 WHEEL_JOINTS = (LEFT_WHEEL_JOINT, RIGHT_WHEEL_JOINT)
 # Static transforms are latched: late subscribers (RViz, tf2 listeners) still get them.
@@ -139,6 +149,13 @@ TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 def _reached(time_s: float, target_s: float) -> bool:
     """Tell whether simulated time has reached a target, allowing for step-sum float drift."""
     return time_s + TIME_EPSILON_S >= target_s
+
+
+def _steps_to(time_s: float, event_s: float, timestep_s: float) -> int:
+    """Return how many physics steps from ``time_s`` first reach ``event_s`` (at least one)."""
+    # Events lie on the step grid up to float drift: the tolerance keeps k steps from becoming
+    # k + 1 when k * timestep_s sums to a hair above the event.
+    return max(1, math.ceil((event_s - time_s) / timestep_s - 1e-6))
 
 
 @dataclasses.dataclass
@@ -202,6 +219,10 @@ class SimulatorNode(Node):
         self._last_score_stamp = None
         self._finished = False
         self._paused = parameters['start_paused']
+        self._lockstep = parameters['lockstep']
+        self._awaiting_command = False
+        self._lockstep_timeouts = 0
+        self._holding_for_partner = False
         # Render once now: a machine that cannot render says so at start-up, and the GL
         # context is made on this thread, the one that spins the node.
         self._world.render_camera()
@@ -231,6 +252,18 @@ class SimulatorNode(Node):
         self._pacing_origin = None
         self._timer = self.create_timer(timer_period_s, self.timer_callback,
                                         clock=self._wall_clock)
+        # Waits are timers that stay cancelled until needed: a waiting simulator sleeps in the
+        # executor instead of spinning through a zero-period timer.
+        self._lockstep_timeout_timer = self.create_timer(
+            parameters['lockstep_timeout_s'], self.lockstep_timeout_callback,
+            clock=self._wall_clock)
+        self._lockstep_timeout_timer.cancel()
+        self._partner_check_timer = self.create_timer(
+            LOCKSTEP_PARTNER_CHECK_PERIOD_S, self.partner_check_callback,
+            clock=self._wall_clock)
+        self._partner_check_timer.cancel()
+        if self._paused:
+            self._timer.cancel()
         self._cmd_vel_type_timer = self.create_timer(
             CMD_VEL_TYPE_CHECK_PERIOD_S, self.cmd_vel_type_check_callback,
             clock=self._wall_clock)
@@ -239,6 +272,8 @@ class SimulatorNode(Node):
         width_px, height_px = self._world.image_size_px
         pace = (f'real-time factor {self._real_time_factor:g}' if self._real_time_factor
                 else 'as fast as possible')
+        if self._lockstep:
+            pace += ', in lockstep with the follower'
         self.get_logger().info(
             f"Simulating course '{course.name}' ({course.length_m:.1f} m) with a "
             f'{width_px}x{height_px} camera at {camera_rate_hz:g} Hz, {pace}'
@@ -345,6 +380,11 @@ class SimulatorNode(Node):
         """Return whether time stands still until a step or an unpause."""
         return self._paused
 
+    @property
+    def lockstep_timeouts(self) -> int:
+        """Return how many camera frames got no answering cmd_vel within the lockstep wait."""
+        return self._lockstep_timeouts
+
     def cmd_vel_callback(self, msg: Twist) -> None:
         """Take a velocity command; a non-finite one is refused and the robot keeps its last."""
         linear_mps, angular_radps = msg.linear.x, msg.angular.z
@@ -355,6 +395,8 @@ class SimulatorNode(Node):
             return
         self._watchdog.command(linear_mps, angular_radps, self._world.time_s)
         self._commands_received += 1
+        if self._awaiting_command:
+            self._resume()
 
     def cmd_vel_stamped_callback(self, msg: TwistStamped) -> None:
         """Take a stamped velocity command; its stamp is not used (arrival time counts)."""
@@ -380,6 +422,10 @@ class SimulatorNode(Node):
         """Pause (``data: true``) or resume (``data: false``) simulated time."""
         self._paused = bool(request.data)
         self._pacing_origin = None
+        if self._paused:
+            self._timer.cancel()
+        else:
+            self._timer.reset()
         response.success = True
         response.message = (f'Paused at {self._world.time_s:.3f} s.' if self._paused
                             else f'Running from {self._world.time_s:.3f} s.')
@@ -396,7 +442,11 @@ class SimulatorNode(Node):
             response.message = f'The run ended at run_duration_s = {self._run_duration_s:g} s.'
             return response
         steps = self.get_parameter('step_physics_steps').value
-        self._advance_to(self._world.time_s + steps * self._world.timestep_s)
+        # Stepping is the caller driving time: it does not stop for lockstep answers.
+        self._awaiting_command = False
+        self._lockstep_timeout_timer.cancel()
+        self._advance_to(self._world.time_s + steps * self._world.timestep_s,
+                         stop_for_commands=False)
         response.success = True
         response.message = f'Stepped to {self._world.time_s:.3f} s.'
         return response
@@ -419,7 +469,10 @@ class SimulatorNode(Node):
 
     def timer_callback(self) -> None:
         """Advance the simulation as far as the real-time factor asks for."""
-        if self._finished or self._paused:
+        if self._finished or self._paused or self._awaiting_command:
+            return
+        if self._lockstep and not self._partner_present():
+            self._hold_for_partner()
             return
         if self._real_time_factor == 0.0:
             self._advance_to(self._world.time_s + self._tick_s)
@@ -440,16 +493,76 @@ class SimulatorNode(Node):
             target_sim_s = self._world.time_s + self._tick_s
         self._advance_to(target_sim_s, deadline_s=now_s + MAX_CATCH_UP_WALL_S)
 
-    def _advance_to(self, target_s: float, deadline_s: float = math.inf) -> None:
-        half_step_s = self._world.timestep_s / 2.0
-        while (self._world.time_s + half_step_s < target_s and not self._finished
-               and time.monotonic() < deadline_s):
-            self._physics_step()
+    def _partner_present(self) -> bool:
+        return (self._image_publisher is not None
+                and self._image_publisher.get_subscription_count() > 0
+                and self.count_publishers(self._cmd_vel_subscription.topic_name) > 0)
 
-    def _physics_step(self) -> None:
+    def _hold_for_partner(self) -> None:
+        self._timer.cancel()
+        self._partner_check_timer.reset()
+        if not self._holding_for_partner:
+            self._holding_for_partner = True
+            self.get_logger().info(
+                f'Lockstep: holding time at {self._world.time_s:.3f} s until a node subscribes '
+                f'to {self._image_publisher.topic_name if self._image_publisher else "the camera"}'
+                f' and one publishes {self._cmd_vel_subscription.topic_name}.')
+
+    def partner_check_callback(self) -> None:
+        """Lockstep: let time run again once the follower is there."""
+        if self._partner_present():
+            self._partner_check_timer.cancel()
+            self._holding_for_partner = False
+            self.get_logger().info('Lockstep: follower connected, time runs.')
+            self._timer.reset()
+
+    def lockstep_timeout_callback(self) -> None:
+        """Lockstep: no command answered the last frame in time; drive on with the last one."""
+        self._lockstep_timeouts += 1
+        self.get_logger().warn(
+            f'Lockstep: no cmd_vel answered the camera frame of {self._world.time_s:.3f} s '
+            f'within lockstep_timeout_s; simulating on with the last command '
+            f'({self._lockstep_timeouts} frames so far).', throttle_duration_sec=10.0)
+        self._resume()
+
+    def _await_command(self) -> None:
+        self._awaiting_command = True
+        self._timer.cancel()
+        self._lockstep_timeout_timer.reset()
+
+    def _resume(self) -> None:
+        self._awaiting_command = False
+        self._lockstep_timeout_timer.cancel()
+        if not self._paused:
+            self._timer.reset()
+
+    def _advance_to(self, target_s: float, deadline_s: float = math.inf,
+                    stop_for_commands: bool = True) -> None:
+        world = self._world
+        timestep_s = world.timestep_s
+        half_step_s = timestep_s / 2.0
+        while (world.time_s + half_step_s < target_s and not self._finished
+               and not (stop_for_commands and self._awaiting_command)
+               and time.monotonic() < deadline_s):
+            # Run the physics in one call up to the next thing that happens: a publication,
+            # the command going stale, the target. Nothing between changes the wheels' command,
+            # so this equals stepping one by one, without Python between the steps.
+            time_s = world.time_s
+            next_event_s = min(periodic.next_s for periodic in self._schedule)
+            expires_at_s = self._watchdog.expires_at_s()
+            if expires_at_s > time_s + TIME_EPSILON_S:
+                next_event_s = min(next_event_s, expires_at_s)
+            if self._run_duration_s > 0.0:
+                next_event_s = min(next_event_s, self._run_duration_s)
+            self._physics_steps(min(
+                _steps_to(time_s, next_event_s, timestep_s),
+                # The steps that keep time + half a step short of the target.
+                max(1, math.ceil((target_s - time_s) / timestep_s - 0.5 - 1e-6))))
+
+    def _physics_steps(self, steps: int) -> None:
         world = self._world
         world.set_twist(*self._watchdog.current(world.time_s))
-        world.step(world.timestep_s)
+        world.step(steps * world.timestep_s)
         world.sync_viewer()
         time_s = world.time_s
         stamp = messages.stamp(time_s)
@@ -504,10 +617,13 @@ class SimulatorNode(Node):
 
     def _publish_cameras(self, stamp: Time) -> None:
         if self._image_publisher is not None:
-            if self._image_publisher.get_subscription_count() > 0:
-                self._publish_rgb(stamp)
+            # camera_info first: a follower then knows the intrinsics when the image comes.
             self._rgb_info_msg.header.stamp = stamp
             self._camera_info_publisher.publish(self._rgb_info_msg)
+            if self._image_publisher.get_subscription_count() > 0:
+                self._publish_rgb(stamp)
+                if self._lockstep and not self._paused and self._partner_present():
+                    self._await_command()
         depth_wanted = (self._depth_publisher is not None
                         and self._depth_publisher.get_subscription_count() > 0)
         points_wanted = (self._points_publisher is not None

@@ -16,7 +16,7 @@ from followbot.follower_node import FOLLOWER_PARAMETERS, FollowerNode
 from followbot.image_conversion import array_to_image
 from followbot_sim import messages
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 import numpy as np
 import pytest
 from rclpy.exceptions import ParameterException
@@ -63,7 +63,11 @@ def camera_info() -> CameraInfo:
 class Harness(NodeHarness):
     """A follower, and a client publishing camera frames and recording what comes back."""
 
-    def __init__(self, context, send_camera_info=True, **follower_options):
+    def __init__(self, context, send_camera_info=True, cmd_vel_stamped=False,
+                 **follower_options):
+        if cmd_vel_stamped:
+            follower_options['parameter_overrides'] = [
+                Parameter('cmd_vel_stamped', value=True)]
         super().__init__(context, FollowerNode(context=context, **follower_options),
                          'follower_test_client')
         self.follower = self.node
@@ -73,12 +77,20 @@ class Harness(NodeHarness):
         self.parameters = AsyncParameterClient(self.client, 'follower')
         self.time_s = 0.0
         self.cmd_vels = []
-        self.client.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
+        self.stamped_cmd_vels = []
+        if cmd_vel_stamped:
+            self.client.create_subscription(TwistStamped, 'cmd_vel', self._take_stamped, 10)
+        else:
+            self.client.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
         self.spin_until(lambda: self.images.get_subscription_count() > 0
                         and self.camera_infos.get_subscription_count() > 0)
         if send_camera_info:
             self.camera_infos.publish(camera_info())
             self.spin_until(lambda: self.follower._camera_geometry is not None)
+
+    def _take_stamped(self, msg):
+        self.stamped_cmd_vels.append(msg)
+        self.cmd_vels.append(msg.twist)
 
     def send(self, msg):
         """Publish a frame stamped 50 ms after the previous one; return the command it causes."""
@@ -127,6 +139,20 @@ def test_book_parameters_steer_like_the_book(book_harness, line_offset_px):
     # The book's law: -(cx - w/2) / 100 rad/s; the drawn line's centroid is at column - 0.5.
     expected_radps = -(line_column_px - 0.5 - WIDTH_PX / 2) / 100.0
     assert command.angular.z == pytest.approx(expected_radps, abs=1e-3)
+
+
+def test_stamped_commands_carry_the_stamp_of_the_image_they_answer(ros_context):
+    harness = Harness(ros_context, cmd_vel_stamped=True)
+    try:
+        for _ in range(SETTLING_FRAMES):
+            harness.send(camera_frame(WIDTH_PX // 2))
+            stamped = harness.stamped_cmd_vels[-1]
+            assert stamped.header.stamp == messages.stamp(harness.time_s)
+            assert stamped.header.frame_id == 'base_footprint'
+        assert stamped.twist.linear.x > 0.3
+        assert stamped.twist.angular.z == pytest.approx(0.0, abs=0.02)
+    finally:
+        harness.close()
 
 
 def test_drives_straight_along_a_centred_line_after_trusting_it(harness):
