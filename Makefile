@@ -2,6 +2,7 @@
 #   make demo   - set up .venv, then watch the simulated TurtleBot lap the course
 #   make test   - set up .venv, then run the whole test suite (what CI runs)
 #   make scorecard - score the follower and the book's controller on every built-in course
+#   make benchmark - perception time, camera-to-cmd_vel latency and simulator speed, measured
 # Set-up is done once and redone only when a requirements file or setup.py changes.
 
 PYTHON ?= python3
@@ -12,7 +13,7 @@ STAMP := $(VENV)/.followbot-installed
 MESA_EGL_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2
 LDCONFIG := $(shell command -v ldconfig || echo /sbin/ldconfig)
 
-.PHONY: demo test scorecard setup system-deps clean
+.PHONY: demo test scorecard benchmark setup system-deps clean
 
 demo: $(STAMP)
 	$(VENV)/bin/followbot $(DEMO_ARGS)
@@ -22,6 +23,9 @@ test: $(STAMP)
 
 scorecard: $(STAMP)
 	$(VENV)/bin/scorecard
+
+benchmark: $(STAMP)
+	$(VENV)/bin/benchmark
 
 setup: $(STAMP)
 

@@ -32,6 +32,7 @@ setup(
             'sim = followbot_sim.sim_node:main',
             'followbot = followbot.launcher:main',
             'scorecard = followbot.scorecard:main',
+            'benchmark = followbot.benchmark:main',
         ],
     },
 )

@@ -7,6 +7,7 @@ follower publish; the ``followbot`` entry point is run as a person runs the demo
 
 import os
 from pathlib import Path
+import shutil
 import signal
 import subprocess
 import sys
@@ -14,6 +15,7 @@ import time
 
 from conftest import child_environment, run_domain_id, spin_until
 import cv2
+from followbot.transport import fastdds_profile_path, FASTDDS_PROFILE_VARIABLE
 from followbot_sim.messages import seconds
 from geometry_msgs.msg import Twist
 import pytest
@@ -198,11 +200,16 @@ def test_simulator_serves_its_whole_interface_under_a_namespace(ros_context):
     assert received['/odom'][-1].child_frame_id == 'base_footprint'
 
 
-def run_launcher(domain_id: int, *arguments: str, **popen_options) -> subprocess.Popen:
-    """Start the followbot entry point as a user would."""
+def run_launcher(domain_id: int, *arguments: str, fastdds_profile: str | None = None,
+                 **popen_options) -> subprocess.Popen:
+    """Start the followbot entry point as a user would, with Fast DDS profile of their own."""
+    environment = child_environment(domain_id)
+    environment.pop(FASTDDS_PROFILE_VARIABLE, None)
+    if fastdds_profile is not None:
+        environment[FASTDDS_PROFILE_VARIABLE] = fastdds_profile
     return subprocess.Popen(
         [sys.executable, '-m', 'followbot.launcher', '--domain-id', str(domain_id),
-         *arguments], env=child_environment(domain_id), stdout=subprocess.PIPE,
+         *arguments], env=environment, stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT, text=True, **popen_options)
 
 
@@ -215,6 +222,8 @@ def test_followbot_runs_both_nodes_and_reports_progress(tmp_path):
     output, _ = launcher.communicate(timeout=120)
     assert launcher.returncode == 0, output
     assert '[sim] ' in output and '[follower] ' in output
+    # The images travel through the package's shared-memory profile unless told otherwise.
+    assert f'Fast DDS profile {fastdds_profile_path()}.' in output.splitlines()[0]
     progress = [line for line in output.splitlines() if line.startswith('[followbot] t=')]
     assert len(progress) >= 2, output
     final = [line for line in output.splitlines() if line.startswith('[followbot] final: ')]
@@ -223,6 +232,23 @@ def test_followbot_runs_both_nodes_and_reports_progress(tmp_path):
     overview = cv2.imread(str(pictures_dir / 'overview.png'))
     assert camera.shape == (480, 640, 3)
     assert overview.shape == (800, 800, 3)
+
+
+def test_followbot_in_lockstep_with_a_users_fastdds_profile(tmp_path):
+    profile = tmp_path / 'my_profile.xml'
+    shutil.copy(fastdds_profile_path(), profile)
+    launcher = run_launcher(run_domain_id(), '--duration', '5', '--real-time-factor', '0',
+                            '--lockstep', fastdds_profile=str(profile))
+    output, _ = launcher.communicate(timeout=120)
+    assert launcher.returncode == 0, output
+    first_line = output.splitlines()[0]
+    assert 'as fast as possible, in lockstep' in first_line
+    assert f'Fast DDS profile {profile}.' in first_line
+    assert 'in lockstep with the follower' in output
+    # The monitor may still be discovering the simulator at this speed: its own report counts.
+    assert 'Run of 5.0 s simulated time done' in output
+    # Every frame answered in time: the simulator never had to drive on without a command.
+    assert 'no cmd_vel answered' not in output
 
 
 def child_pids(parent_pid: int) -> list:

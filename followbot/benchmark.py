@@ -1,0 +1,586 @@
+"""
+The ``benchmark`` command: how fast followbot sees, answers and simulates, on this machine.
+
+Three measurements, each printed as a table with the comparison side by side:
+
+* **Perception**: time per 640x480 frame from the Image message to the line's position, for
+  the follower's detector and for the book's pipeline (the whole frame converted to HSV and
+  thresholded, rows outside the band zeroed, image moments), on the same frames rendered by the
+  simulator along a course.
+* **Camera to cmd_vel** between two processes: a stand-in camera
+  (:mod:`followbot.latency_probe`) sends those frames to the real follower process at 20 and
+  30 Hz and times each command against the stamp of the image it answers; with the project's
+  Fast DDS profile and with Fast DDS's defaults.
+* **Simulator speed** with the follower in the loop: the simulator and the follower as two
+  processes, headless, in lockstep, as fast as possible.
+
+Every process's peak memory (its largest resident set) is reported. Figures are medians and
+99th percentiles over many frames; nothing is asserted, the figures are the output.
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import platform
+import resource
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import cv2
+from diagnostic_msgs.msg import DiagnosticArray
+from followbot.image_conversion import array_to_image, image_to_array
+from followbot.line_detector import DetectorConfig, LineDetector
+from followbot.node_runner import StopSignals
+from followbot.transport import (environment_with_profile, environment_without_profile,
+                                 keep_large_buffers)
+from followbot_sim.course_file import load_course
+from followbot_sim.sim_node import SCORE_STATUS_NAME
+from followbot_sim.world import FollowbotWorld
+import mujoco
+import numpy as np
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+SECTIONS = ('perception', 'latency', 'simulation')
+COURSE = 'book_loop'
+IMAGE_WIDTH_PX = 640
+IMAGE_HEIGHT_PX = 480
+CAMERA_RATE_HZ = 20.0
+# The frames: poses around the whole course, swaying across the line and turning a little
+# as a following robot does, so the detector meets straights, bends and offsets.
+SWAY_AMPLITUDE_M = 0.03
+SWAY_WAVELENGTH_M = 1.7
+YAW_SWAY_RAD = 0.05
+# The book's band: rows 3h/4 to 3h/4 + 20 (chapter 12's follower).
+BOOK_BAND_ROWS_PX = 20
+US_PER_S = 1e6
+KIB_PER_MIB = 1024
+# How long a run may take before the benchmark gives up on it, beyond its own length.
+PROCESS_GRACE_S = 60.0
+STOP_GRACE_S = 5.0
+POLL_S = 0.05
+
+
+def _percentiles(values) -> dict:
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return {'median': None, 'p99': None, 'max': None}
+    return {'median': float(np.median(values)), 'p99': float(np.percentile(values, 99)),
+            'max': float(values.max())}
+
+
+def _number(value, digits: int = 1) -> str:
+    return '—' if value is None else f'{value:.{digits}f}'
+
+
+def _markdown_table(header: list, rows: list) -> str:
+    lines = ['| ' + ' | '.join(header) + ' |',
+             '| ' + ' | '.join('---' for _ in header) + ' |']
+    lines += ['| ' + ' | '.join(str(cell) for cell in row) + ' |' for row in rows]
+    return '\n'.join(lines)
+
+
+def render_course_frames(frame_count: int, course_name: str = COURSE) -> tuple:
+    """
+    Render the robot's camera at poses spread evenly around a course, in driving order.
+
+    :param frame_count: how many frames.
+    :param course_name: a built-in course or a course file.
+    :return: ((N, H, W, 3) uint8 BGR frames, (fx, fy, cx, cy) intrinsics).
+    """
+    course = load_course(course_name)
+    world = FollowbotWorld(course, IMAGE_WIDTH_PX, IMAGE_HEIGHT_PX)
+    try:
+        frames_bgr = np.empty((frame_count, IMAGE_HEIGHT_PX, IMAGE_WIDTH_PX, 3), np.uint8)
+        for index in range(frame_count):
+            arc_m = course.length_m * index / frame_count
+            x_m, y_m, heading_rad = course.point_at(arc_m)
+            phase = 2.0 * np.pi * arc_m / SWAY_WAVELENGTH_M
+            offset_m = SWAY_AMPLITUDE_M * np.sin(phase)
+            world.reset_robot((x_m - offset_m * np.sin(heading_rad),
+                               y_m + offset_m * np.cos(heading_rad),
+                               heading_rad + YAW_SWAY_RAD * np.cos(phase)))
+            cv2.cvtColor(world.render_camera(), cv2.COLOR_RGB2BGR, dst=frames_bgr[index])
+        return frames_bgr, world.camera_intrinsics()
+    finally:
+        world.close()
+
+
+class BookPipeline:
+    """
+    The book's line finder (chapter 12), with OpenCV's hue scale and integer row indices.
+
+    Per frame: the whole image to HSV, thresholded, every row outside the band zeroed, and the
+    centroid from the mask's moments; new images each time, as in the book.
+    """
+
+    def __init__(self, config: DetectorConfig):
+        """
+        Take the colour bounds of a detector configuration.
+
+        :param config: its hue, saturation and value bounds are used.
+        """
+        self._lower_hsv = np.array((config.hue_min, config.saturation_min, config.value_min),
+                                   np.uint8)
+        self._upper_hsv = np.array((config.hue_max, config.saturation_max, config.value_max),
+                                   np.uint8)
+
+    def detect(self, image_bgr: np.ndarray):
+        """
+        Find the line's centroid column in the book's band.
+
+        :param image_bgr: an (H, W, 3) uint8 BGR image.
+        :return: the centroid's column in pixels, or None when the band has no line pixel.
+        """
+        hsv = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2HSV)
+        mask = cv2.inRange(hsv, self._lower_hsv, self._upper_hsv)
+        height = image_bgr.shape[0]
+        search_top = 3 * height // 4
+        search_bottom = search_top + BOOK_BAND_ROWS_PX
+        mask[0:search_top] = 0
+        mask[search_bottom:height] = 0
+        moments = cv2.moments(mask)
+        if moments['m00'] <= 0:
+            return None
+        return moments['m10'] / moments['m00']
+
+
+def _time_per_frame_us(function, messages, repeats: int) -> np.ndarray:
+    """Call ``function(msg)`` on every message, ``repeats`` times over, and time each call."""
+    times_us = np.empty(len(messages) * repeats)
+    index = 0
+    for _ in range(repeats):
+        for msg in messages:
+            start_s = time.perf_counter()
+            function(msg)
+            times_us[index] = (time.perf_counter() - start_s) * US_PER_S
+            index += 1
+    return times_us
+
+
+def measure_perception(frames_bgr: np.ndarray, repeats: int) -> dict:
+    """
+    Time the follower's detector and the book's pipeline on the same frames.
+
+    Both start from the same sensor_msgs/Image and use the same colour bounds.
+
+    :param frames_bgr: (N, H, W, 3) uint8 BGR frames, in driving order.
+    :param repeats: times each frame is processed (in order, so the follower's detector keeps
+        its expectations from frame to frame as in a run).
+    :return: per pipeline: ``median_us``, ``p99_us``, ``calls``; and ``frames``.
+    """
+    image_messages = [array_to_image(frame, 'bgr8') for frame in frames_bgr]
+    config = DetectorConfig()
+    followbot = LineDetector(config)
+    book_band = LineDetector(DetectorConfig(
+        band_count=1, band_center_fraction=(3 * IMAGE_HEIGHT_PX // 4 + BOOK_BAND_ROWS_PX / 2)
+        / IMAGE_HEIGHT_PX, band_height_px=BOOK_BAND_ROWS_PX, min_area_px=1))
+    book = BookPipeline(config)
+    pipelines = {
+        'followbot': lambda msg: followbot.detect(image_to_array(msg), msg.encoding),
+        'followbot_book_band': lambda msg: book_band.detect(image_to_array(msg),
+                                                            msg.encoding),
+        'book_full_frame': lambda msg: book.detect(image_to_array(msg)),
+    }
+    results = {'frames': len(image_messages)}
+    for name, pipeline in pipelines.items():
+        pipeline(image_messages[0])  # First call: buffers and OpenCV's dispatch.
+        times_us = _time_per_frame_us(pipeline, image_messages, repeats)
+        figures = _percentiles(times_us)
+        results[name] = {'median_us': figures['median'], 'p99_us': figures['p99'],
+                         'calls': len(times_us)}
+    return results
+
+
+def format_perception(results: dict) -> str:
+    """
+    Make the perception table.
+
+    :param results: from :func:`measure_perception`.
+    :return: Markdown.
+    """
+    book_us = results['book_full_frame']['median_us']
+    names = {
+        'followbot': "followbot's detector (6 bands of 12 rows)",
+        'followbot_book_band': "followbot's detector on the book's band (1 band, 20 rows)",
+        'book_full_frame': "the book's pipeline (whole frame to HSV, 1 band)",
+    }
+    rows = [(label, _number(results[key]['median_us']), _number(results[key]['p99_us']),
+             f"{book_us / results[key]['median_us']:.1f}×")
+            for key, label in names.items()]
+    return _markdown_table(['pipeline, Image message to line position', 'median µs',
+                            'p99 µs', 'book ÷ this (median)'], rows)
+
+
+class ChildProcess:
+    """
+    A node process, and the peak of its resident memory while it ran.
+
+    The peak is the kernel's VmHWM of the process, read while it runs: ``wait4``'s
+    ``ru_maxrss`` would not do, as a child starts with its parent's peak.
+    """
+
+    def __init__(self, module: str, arguments: list, environment: dict, log_path: Path):
+        """
+        Start ``python -m module arguments...`` with its output in a log file.
+
+        :param module: the module to run.
+        :param arguments: its command-line arguments.
+        :param environment: its environment.
+        :param log_path: file for its output.
+        """
+        self.log_path = log_path
+        self._log = open(log_path, 'w')
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', module, *arguments], env=environment,
+            stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT)
+        self.peak_memory_mib = None
+
+    def sample_memory(self) -> None:
+        """Read the process's peak resident memory so far, while it runs."""
+        try:
+            status = Path(f'/proc/{self.process.pid}/status').read_text()
+        except OSError:
+            return  # Ended already: the last reading stands.
+        for line in status.splitlines():
+            if line.startswith('VmHWM:'):
+                # The kernel reports it in kB (KiB).
+                self.peak_memory_mib = int(line.split()[1]) / KIB_PER_MIB
+
+    def running(self) -> bool:
+        """Return whether the process still runs, reading its memory if it does."""
+        if self.process.poll() is not None:
+            return False
+        self.sample_memory()
+        return True
+
+    def wait(self, timeout_s: float) -> bool:
+        """
+        Wait for the process to end, reading its memory meanwhile.
+
+        :param timeout_s: longest wait.
+        :return: whether it ended.
+        """
+        deadline_s = time.monotonic() + timeout_s
+        while self.running():
+            if time.monotonic() > deadline_s:
+                return False
+            time.sleep(POLL_S)
+        self._log.close()
+        return True
+
+    def stop(self) -> None:
+        """Stop it as Ctrl-C would, then harder if it does not end."""
+        for stop_signal in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            if not self.running():
+                break
+            self.process.send_signal(stop_signal)
+            if self.wait(STOP_GRACE_S):
+                break
+        self._log.close()
+
+    def log_tail(self, lines: int = 15) -> str:
+        """Return the last lines of its log, to explain a failure."""
+        return '\n'.join(self.log_path.read_text(errors='replace').splitlines()[-lines:])
+
+
+def _node_environment(domain_id: int, with_profile: bool) -> tuple:
+    environment = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+                       ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', RCUTILS_COLORIZED_OUTPUT='0')
+    if with_profile:
+        return environment_with_profile(environment)
+    return environment_without_profile(environment), "Fast DDS's defaults"
+
+
+def measure_latency(frames_file: Path, intrinsics: tuple, rate_hz: float, frame_count: int,
+                    with_profile: bool, domain_id: int, log_folder: Path) -> dict:
+    """
+    Run the follower and the latency probe as two processes and collect the probe's figures.
+
+    :param frames_file: the .npy file of BGR frames the probe sends.
+    :param intrinsics: (fx, fy, cx, cy) of those frames.
+    :param rate_hz: frames per second.
+    :param frame_count: frames measured.
+    :param with_profile: whether both processes use the project's Fast DDS profile.
+    :param domain_id: a ROS domain no one else uses while this runs.
+    :param log_folder: where the processes' logs go.
+    :return: ``p50_ms``, ``p99_ms``, ``max_ms``, ``answered``, ``dropped``, ``frames``,
+        ``profile``, peak memories (MiB), or ``error``.
+    """
+    environment, profile = _node_environment(domain_id, with_profile)
+    tag = f"{rate_hz:g}hz_{'profile' if with_profile else 'defaults'}"
+    follower = ChildProcess('followbot.follower_node', [
+        '--ros-args', '-p', 'cmd_vel_stamped:=true', '--log-level', 'warn'],
+        environment, log_folder / f'follower_{tag}.log')
+    figures_file = log_folder / f'probe_{tag}.json'
+    probe = ChildProcess('followbot.latency_probe', [
+        '--frames-file', str(frames_file), '--intrinsics', *map(str, intrinsics),
+        '--rate-hz', str(rate_hz), '--frames', str(frame_count),
+        '--json-out', str(figures_file)], environment, log_folder / f'probe_{tag}.log')
+    result = {'rate_hz': rate_hz, 'profile': profile, 'frames': frame_count}
+    try:
+        if not probe.wait(frame_count / rate_hz + PROCESS_GRACE_S):
+            probe.stop()
+    finally:
+        follower.stop()
+    result['peak_memory_follower_mib'] = follower.peak_memory_mib
+    result['peak_memory_probe_mib'] = probe.peak_memory_mib
+    try:
+        figures = json.loads(figures_file.read_text())
+    except (OSError, json.JSONDecodeError):
+        result['error'] = f'the probe gave no figures:\n{probe.log_tail()}'
+        return result
+    if not figures['follower_found']:
+        result['error'] = f'the follower did not connect:\n{follower.log_tail()}'
+        return result
+    latencies_ms = figures['latencies_ms']
+    stats = _percentiles(latencies_ms)
+    result.update(p50_ms=stats['median'], p99_ms=stats['p99'], max_ms=stats['max'],
+                  answered=len(latencies_ms), dropped=frame_count - len(latencies_ms))
+    return result
+
+
+def format_latency(results: list) -> str:
+    """
+    Make the latency table.
+
+    :param results: from :func:`measure_latency`, one per rate and configuration.
+    :return: Markdown.
+    """
+    rows = []
+    for result in results:
+        if 'error' in result:
+            rows.append((f"{result['rate_hz']:g} Hz", result['profile'], 'failed', '', '', '',
+                         '', ''))
+            continue
+        rows.append((
+            f"{result['rate_hz']:g} Hz", result['profile'], _number(result['p50_ms'], 2),
+            _number(result['p99_ms'], 2), _number(result['max_ms'], 2),
+            f"{result['dropped']} of {result['frames']}",
+            _number(result['peak_memory_follower_mib'], 0),
+            _number(result['peak_memory_probe_mib'], 0)))
+    return _markdown_table(['rate', 'DDS configuration', 'p50 ms', 'p99 ms', 'max ms',
+                            'frames dropped', 'follower peak MiB', 'camera peak MiB'], rows)
+
+
+class _ScoreListener(Node):
+    """Record when each of the simulator's score messages arrives (wall time)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('benchmark_score_listener', **kwargs)
+        self.samples = []  # (wall s, simulated s)
+        self.summary = {}
+        self.create_subscription(DiagnosticArray, '/diagnostics', self.callback, 10)
+
+    def callback(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name == SCORE_STATUS_NAME:
+                self.summary = {value.key: value.value for value in status.values}
+                self.samples.append((time.monotonic(), float(self.summary['time_s'])))
+
+
+def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
+                       stop: StopSignals) -> dict:
+    """
+    Run the simulator and the follower as two processes in lockstep, as fast as possible.
+
+    :param simulated_s: simulated seconds to run.
+    :param domain_id: a ROS domain no one else uses while this runs.
+    :param log_folder: where the processes' logs go.
+    :param stop: ends the run early when set.
+    :return: ``simulated_per_wall`` (from the score messages' arrival times), ``simulated_s``,
+        ``wall_s``, ``laps``, ``rms_cm``, peak memories (MiB), or ``error``.
+    """
+    environment, profile = _node_environment(domain_id, with_profile=True)
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    listener = _ScoreListener(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(listener)
+    follower = ChildProcess('followbot.follower_node', [
+        '--ros-args', '-p', 'use_sim_time:=true', '--log-level', 'warn'],
+        environment, log_folder / 'follower_simulation.log')
+    simulator = ChildProcess('followbot_sim.sim_node', [
+        '--ros-args', '-p', 'lockstep:=true', '-p', 'real_time_factor:=0.0',
+        '-p', f'run_duration_s:={float(simulated_s)}', '-p', f'course:={COURSE}',
+        '-p', f'image_width_px:={IMAGE_WIDTH_PX}', '-p', f'image_height_px:={IMAGE_HEIGHT_PX}',
+        '-p', f'camera_rate_hz:={CAMERA_RATE_HZ}', '-p', 'score_period_s:=1.0'],
+        environment, log_folder / 'sim_simulation.log')
+    result = {'simulated_s': simulated_s, 'profile': profile}
+    try:
+        deadline_s = time.monotonic() + simulated_s + PROCESS_GRACE_S
+        while simulator.running() and not stop.is_set():
+            follower.sample_memory()
+            if time.monotonic() > deadline_s:
+                result['error'] = 'the simulator did not finish in time'
+                break
+            executor.spin_once(timeout_sec=POLL_S)
+        # The last score is published as the run ends: take what is still on its way.
+        end_s = time.monotonic() + 0.5
+        while time.monotonic() < end_s:
+            executor.spin_once(timeout_sec=POLL_S)
+    finally:
+        simulator.stop()
+        follower.stop()
+        executor.shutdown()
+        listener.destroy_node()
+        rclpy.try_shutdown(context=context)
+    result['peak_memory_simulator_mib'] = simulator.peak_memory_mib
+    result['peak_memory_follower_mib'] = follower.peak_memory_mib
+    samples = listener.samples
+    if len(samples) < 2:
+        result.setdefault('error', f'no progress from the simulator:\n{simulator.log_tail()}')
+        return result
+    (first_wall_s, first_sim_s), (last_wall_s, last_sim_s) = samples[0], samples[-1]
+    summary = listener.summary
+    result.update(
+        simulated_per_wall=(last_sim_s - first_sim_s) / (last_wall_s - first_wall_s),
+        measured_simulated_s=last_sim_s - first_sim_s, wall_s=last_wall_s - first_wall_s,
+        laps=int(summary['laps_completed']),
+        rms_cm=100.0 * float(summary['rms_distance_from_line_m']),
+        max_cm=100.0 * float(summary['max_distance_from_line_m']))
+    return result
+
+
+def format_simulation(result: dict) -> str:
+    """
+    Make the simulator-speed table.
+
+    :param result: from :func:`measure_simulation`.
+    :return: Markdown.
+    """
+    if 'error' in result:
+        return f"Simulation failed: {result['error']}"
+    row = (f'{IMAGE_WIDTH_PX}x{IMAGE_HEIGHT_PX} at {CAMERA_RATE_HZ:g} Hz, lockstep',
+           f"{result['measured_simulated_s']:.0f}", f"{result['wall_s']:.1f}",
+           f"{result['simulated_per_wall']:.2f}×", result['laps'],
+           f"{result['rms_cm']:.1f} / {result['max_cm']:.1f}",
+           _number(result['peak_memory_simulator_mib'], 0),
+           _number(result['peak_memory_follower_mib'], 0))
+    return _markdown_table(['camera', 'simulated s', 'wall s', 'real time ×', 'laps',
+                            'RMS / max cm', 'simulator peak MiB', 'follower peak MiB'], [row])
+
+
+def machine_description() -> str:
+    """Describe what the figures were measured on."""
+    return (f'{platform.system()} {platform.machine()}, {os.cpu_count()} CPUs, Python '
+            f'{platform.python_version()}, rclpy with '
+            f'{rclpy.get_rmw_implementation_identifier()}, MuJoCo {mujoco.__version__}, '
+            f'OpenCV {cv2.__version__}, NumPy {np.__version__}')
+
+
+def parse_arguments(argv=None) -> argparse.Namespace:
+    """
+    Read the command line.
+
+    :param argv: arguments without the program name; ``sys.argv[1:]`` when None.
+    :return: the parsed options.
+    """
+    parser = argparse.ArgumentParser(
+        prog='benchmark', description='Measure perception time, camera-to-cmd_vel latency '
+        'between processes and simulator speed, and print them side by side.')
+    parser.add_argument('--sections', default=','.join(SECTIONS),
+                        help=f'comma-separated, from {", ".join(SECTIONS)} (default: all)')
+    parser.add_argument('--frames', type=int, default=160,
+                        help='frames rendered around the course (default: 160)')
+    parser.add_argument('--repeats', type=int, default=10,
+                        help='perception: times each frame is processed (default: 10)')
+    parser.add_argument('--latency-frames', type=int, default=600,
+                        help='latency: frames measured per rate and configuration '
+                             '(default: 600)')
+    parser.add_argument('--rates', default='20,30',
+                        help='latency: comma-separated frame rates in Hz (default: 20,30)')
+    parser.add_argument('--simulated-seconds', type=float, default=60.0,
+                        help='simulation: simulated seconds to run (default: 60)')
+    parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
+                        help='ROS domain of the runs, which take turns in it (default: from '
+                             'the process id, in 100..199)')
+    parser.add_argument('--json', type=Path, default=None, metavar='FILE',
+                        help='also write the figures to this JSON file')
+    options = parser.parse_args(argv)
+    options.sections = [name.strip() for name in options.sections.split(',') if name.strip()]
+    unknown = sorted(set(options.sections) - set(SECTIONS))
+    if unknown or not options.sections:
+        parser.error(f'--sections takes {", ".join(SECTIONS)}; got {options.sections}')
+    try:
+        options.rates = [float(rate) for rate in options.rates.split(',')]
+    except ValueError:
+        parser.error(f'--rates takes numbers such as 20,30; got {options.rates!r}')
+    if (options.frames < 1 or options.repeats < 1 or options.latency_frames < 1
+            or options.simulated_seconds < 3 or any(rate <= 0 for rate in options.rates)):
+        parser.error('--frames, --repeats and --latency-frames must be at least 1, '
+                     '--simulated-seconds at least 3, and rates above 0')
+    if options.domain_id is None:
+        options.domain_id = 100 + os.getpid() % 100
+    elif not 0 <= options.domain_id <= 232:
+        parser.error('--domain-id must be in 0..232')
+    return options
+
+
+def main(argv=None) -> int:
+    """
+    Run the chosen measurements and print their tables.
+
+    :param argv: command-line arguments without the program name.
+    :return: 0 when every measurement produced figures, 1 otherwise, 130 on Ctrl-C.
+    """
+    options = parse_arguments(argv)
+    keep_large_buffers()
+    stop = StopSignals().install()
+    report = {'machine': machine_description()}
+    print(f'# followbot benchmark\n\n{report["machine"]}\n', flush=True)
+    failed = False
+    with tempfile.TemporaryDirectory(prefix='followbot-benchmark-') as folder:
+        folder = Path(folder)
+        needs_frames = {'perception', 'latency'} & set(options.sections)
+        if needs_frames:
+            frames_bgr, intrinsics = render_course_frames(options.frames)
+        if 'perception' in options.sections and not stop.is_set():
+            perception = measure_perception(frames_bgr, options.repeats)
+            report['perception'] = perception
+            print(f'## Perception per {IMAGE_WIDTH_PX}x{IMAGE_HEIGHT_PX} frame '
+                  f"({perception['frames']} frames rendered around {COURSE}, each "
+                  f'{options.repeats} times)\n\n{format_perception(perception)}\n', flush=True)
+        if 'latency' in options.sections and not stop.is_set():
+            frames_file = folder / 'frames.npy'
+            np.save(frames_file, frames_bgr)
+            latency = []
+            for rate_hz in options.rates:
+                for with_profile in (True, False):
+                    if stop.is_set():
+                        break
+                    latency.append(measure_latency(
+                        frames_file, intrinsics, rate_hz, options.latency_frames,
+                        with_profile, options.domain_id, folder))
+            report['latency'] = latency
+            failed |= any('error' in result for result in latency)
+            print('## Camera image to the cmd_vel it causes, between two processes '
+                  f'({options.latency_frames} frames per row)\n\n{format_latency(latency)}\n',
+                  flush=True)
+            for result in latency:
+                if 'error' in result:
+                    print(f"{result['rate_hz']:g} Hz, {result['profile']}: {result['error']}")
+        if 'simulation' in options.sections and not stop.is_set():
+            simulation = measure_simulation(options.simulated_seconds, options.domain_id,
+                                            folder, stop)
+            report['simulation'] = simulation
+            failed |= 'error' in simulation
+            print('## Simulator with the follower in the loop (two processes, headless, as fast '
+                  f'as possible)\n\n{format_simulation(simulation)}\n', flush=True)
+    report['peak_memory_benchmark_mib'] = (
+        resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / KIB_PER_MIB)
+    if options.json is not None:
+        options.json.write_text(json.dumps(report, indent=2) + '\n')
+    if stop.is_set():
+        return 130
+    return 1 if failed else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
