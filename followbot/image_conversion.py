@@ -234,12 +234,55 @@ def array_to_image(image, encoding, msg=None):
     if msg is None:
         msg = Image()
     height, width = image.shape[:2]
+    _describe_image(msg, height, width, encoding)
+    return fill_message_data(msg, image)
+
+
+def _describe_image(msg, height, width, encoding):
     msg.height = int(height)
     msg.width = int(width)
     msg.encoding = encoding
     msg.is_bigendian = HOST_IS_BIG_ENDIAN
-    msg.step = int(width) * channels_of(encoding) * image.itemsize
-    return fill_message_data(msg, image)
+    msg.step = int(width) * channels_of(encoding) * dtype_of(encoding).itemsize
+
+
+def message_pixels(msg, height, width, encoding):
+    """
+    Size an Image message for an image and return a writable array over its pixel data.
+
+    A producer then writes the pixels straight into the message (OpenCV's ``dst=``, NumPy's
+    ``out=``) instead of into an array of its own that is copied afterwards. The message's
+    data is reused when it already has the size, so frame after frame costs no allocation;
+    the pixels are undefined until written.
+
+    :param msg: the Image to fill; its header is kept.
+    :param height: image height in pixels.
+    :param width: image width in pixels.
+    :param encoding: one of SUPPORTED_ENCODINGS.
+    :return: a C-contiguous array of the shape and element type of the encoding, sharing
+        memory with ``msg.data``; valid until ``msg.data`` is replaced.
+    :raises ImageConversionError: if the encoding is not supported or a size is not positive.
+    """
+    if height < 1 or width < 1:
+        raise ImageConversionError(f'Image has zero size: height {height}, width {width}.')
+    _describe_image(msg, height, width, encoding)
+    size_bytes = msg.step * msg.height
+    data = _reusable_data(msg, size_bytes)
+    if data is None:
+        # The setter copies the array unless the message checks its fields: view what it kept.
+        msg.data = array.array('B', bytes(size_bytes))
+        data = msg.data
+    return np.frombuffer(data, dtype=dtype_of(encoding)).reshape(
+        expected_shape(height, width, encoding))
+
+
+def _reusable_data(msg, size_bytes):
+    """Return the message's data when it is an array.array of bytes of this size, else None."""
+    existing = msg.data
+    if (isinstance(existing, array.array) and existing.typecode == 'B'
+            and len(existing) == size_bytes):
+        return existing
+    return None
 
 
 def fill_message_data(msg, values):
@@ -257,11 +300,10 @@ def fill_message_data(msg, values):
     # right away (glibc then maps and faults fresh pages for every frame);
     # msg.data = ndarray.tobytes() the same, but 78 ms when the message checks its fields
     # (the setter then validates every byte in Python); array.array('B', tobytes()) 0.74 ms.
-    # The setter stores an array.array('B') as is, so frombytes needs one copy and no
-    # temporary.
-    existing = msg.data
-    if (isinstance(existing, array.array) and existing.typecode == 'B'
-            and len(existing) == values.nbytes):
+    # The setter copies an array.array('B') with one memcpy (or keeps it as is when the
+    # message checks its fields).
+    existing = _reusable_data(msg, values.nbytes)
+    if existing is not None:
         np.frombuffer(existing, dtype=values.dtype).reshape(values.shape)[...] = values
         return msg
     data = array.array('B')

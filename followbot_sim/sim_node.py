@@ -16,7 +16,7 @@ import time
 from builtin_interfaces.msg import Time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from followbot.image_conversion import array_to_image
+from followbot.image_conversion import array_to_image, message_pixels
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec
 from followbot_sim import frames
@@ -312,7 +312,6 @@ class SimulatorNode(Node):
         self._depth_info_msg = messages.camera_info(
             intrinsics, size_px, frames.CAMERA_DEPTH_OPTICAL_FRAME)
         width_px, height_px = size_px
-        self._bgr_frame = np.empty((height_px, width_px, 3), np.uint8)
         self._points_xyz = np.empty((height_px, width_px, 3), np.float32)
 
         self._clock_publisher = self.create_publisher(ClockMsg, '/clock', QoSProfile(depth=10))
@@ -636,11 +635,15 @@ class SimulatorNode(Node):
 
     def _publish_rgb(self, stamp: Time) -> None:
         rgb = self._world.render_camera()
+        width_px, height_px = self._world.image_size_px
+        # Converted (or copied) straight into the message: no frame-sized copy of our own.
+        pixels = message_pixels(self._image_msg, height_px, width_px, self._image_encoding)
         if self._image_encoding == 'bgr8':
-            rgb = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR, dst=self._bgr_frame)
-        msg = array_to_image(rgb, self._image_encoding, self._image_msg)
-        msg.header.stamp = stamp
-        self._image_publisher.publish(msg)
+            cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR, dst=pixels)
+        else:
+            np.copyto(pixels, rgb)
+        self._image_msg.header.stamp = stamp
+        self._image_publisher.publish(self._image_msg)
 
     def _publish_depth(self, stamp: Time, depth_wanted: bool, points_wanted: bool) -> None:
         depth_m = self._world.render_depth()

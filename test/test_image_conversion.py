@@ -4,12 +4,14 @@ import array
 import re
 from types import SimpleNamespace
 
+import cv2
 from followbot.image_conversion import array_to_image
 from followbot.image_conversion import CHANNELS_BY_ENCODING
 from followbot.image_conversion import COLOUR_ENCODINGS
 from followbot.image_conversion import dtype_of
 from followbot.image_conversion import image_to_array
 from followbot.image_conversion import ImageConversionError
+from followbot.image_conversion import message_pixels
 from followbot.image_conversion import SUPPORTED_ENCODINGS
 from followbot.image_conversion import to_bgr
 import numpy as np
@@ -189,6 +191,40 @@ def test_array_to_image_refills_a_message_from_a_view_of_its_own_data():
     msg = array_to_image(image, 'bgr8')
     array_to_image(image_to_array(msg)[:, ::-1], 'bgr8', msg)
     np.testing.assert_array_equal(image_to_array(msg), image[:, ::-1])
+
+
+@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+def test_pixels_written_into_message_pixels_are_the_messages_image(encoding):
+    msg = Image()
+    image = random_image(4, 5, encoding, seed=6)
+    pixels = message_pixels(msg, 4, 5, encoding)
+    assert pixels.flags.c_contiguous and pixels.flags.writeable
+    pixels[...] = image
+    assert (msg.height, msg.width, msg.encoding) == (4, 5, encoding)
+    np.testing.assert_array_equal(image_to_array(msg), image)
+
+
+def test_opencv_converts_straight_into_message_pixels():
+    rgb = random_image(6, 7, 'rgb8', seed=7)
+    msg = Image()
+    cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR, dst=message_pixels(msg, 6, 7, 'bgr8'))
+    np.testing.assert_array_equal(image_to_array(msg), rgb[:, :, ::-1])
+
+
+def test_message_pixels_reuse_the_data_of_a_message_of_that_size():
+    msg = Image()
+    message_pixels(msg, 4, 5, 'bgr8')
+    data = msg.data
+    message_pixels(msg, 4, 5, 'bgr8')[...] = 9
+    assert msg.data is data
+    message_pixels(msg, 5, 5, 'bgr8')
+    assert msg.data is not data and len(msg.data) == 5 * 5 * 3
+
+
+@pytest.mark.parametrize('height, width', [(0, 5), (5, 0)])
+def test_message_pixels_refuse_an_empty_image(height, width):
+    with pytest.raises(ImageConversionError, match='zero size'):
+        message_pixels(Image(), height, width, 'bgr8')
 
 
 def test_array_to_image_packs_non_contiguous_arrays():
