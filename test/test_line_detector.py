@@ -57,6 +57,10 @@ BLUE_BGR = (255, 0, 0)
 # The overlay's text sits in the top rows of the image, above every band.
 TEXT_ROWS_PX = 60
 
+# All 2**24 8-bit colours, shown as square images of this side: 16 blue levels each.
+ALL_COLOURS_SIDE_PX = 1024
+COLOUR_LEVELS = 256
+
 
 def bgr(rgb):
     """Return an RGB colour as a BGR tuple."""
@@ -127,6 +131,35 @@ def band_result(found, centroid_x_px, top_px, area_px):
                          area_px=area_px, top_px=top_px, bottom_px=top_px + 10)
 
 
+def all_colour_images():
+    """
+    Yield BGR images that between them hold every 8-bit colour once.
+
+    Each image holds 16 blue levels: row y has blue 16 * k + y // 64 and green
+    4 * (y % 64) + x // 256 in column x, whose red is x % 256.
+    """
+    rows = np.arange(ALL_COLOURS_SIDE_PX).reshape(-1, 1)
+    columns = np.arange(ALL_COLOURS_SIDE_PX).reshape(1, -1)
+    blue_levels = ALL_COLOURS_SIDE_PX * ALL_COLOURS_SIDE_PX // COLOUR_LEVELS ** 2
+    green_rows = COLOUR_LEVELS * COLOUR_LEVELS // ALL_COLOURS_SIDE_PX
+    image = np.empty((ALL_COLOURS_SIDE_PX, ALL_COLOURS_SIDE_PX, 3), np.uint8)
+    image[..., 1] = (rows % green_rows) * (ALL_COLOURS_SIDE_PX // COLOUR_LEVELS) \
+        + columns // COLOUR_LEVELS
+    image[..., 2] = columns % COLOUR_LEVELS
+    for first_blue in range(0, COLOUR_LEVELS, blue_levels):
+        image[..., 0] = first_blue + rows // green_rows
+        yield image
+
+
+def arc_image(center, radius):
+    """Return a floor image with a 15-pixel wide arc of the line, and the arc's mask."""
+    arc_mask = np.zeros((HEIGHT_PX, WIDTH_PX), dtype=np.uint8)
+    cv2.circle(arc_mask, center, radius, 255, thickness=15, lineType=cv2.LINE_8)
+    image = floor_image()
+    image[arc_mask > 0] = bgr(LIT_YELLOW_RGB)
+    return image, arc_mask
+
+
 # Band geometry.
 
 def test_default_config_searches_six_bands_up_the_image_nearest_first():
@@ -192,6 +225,42 @@ def test_band_rows_clip_to_the_image_and_leave_out_overlapping_bands(
     assert detection.confidence == 1.0
     for (top, bottom), band_detection in zip(expected_bands, detection.bands):
         assert band_detection.area_px == (bottom - top) * LINE_WIDTH_PX
+
+
+@pytest.mark.parametrize('fields', (
+    # The nearest band is clipped by the image's bottom edge: 9 rows where the others have 30.
+    {'band_center_fraction': 0.99, 'band_height_px': 30},
+    # The farthest band is clipped by the top edge: 6 rows where the others have 12.
+    {'band_count': 3, 'band_center_fraction': 0.9375, 'band_spacing_fraction': 0.46875},
+    # Band centres 53.28 rows apart: the bands are 53 and 54 rows apart.
+    {'band_count': 5, 'band_center_fraction': 0.93, 'band_spacing_fraction': 0.111,
+     'band_height_px': 9},
+), ids=('clipped_nearest', 'clipped_farthest', 'uneven_spacing'))
+def test_bands_of_unequal_height_or_spacing_each_see_only_their_own_rows(fields):
+    config = DetectorConfig(min_area_px=1, max_stripe_jump_fraction=1.0, **fields)
+    bands = band_rows(HEIGHT_PX, config)
+    heights = {bottom - top for top, bottom in bands}
+    spacings = {upper[0] - lower[0] for upper, lower in zip(bands, bands[1:])}
+    assert len(heights) > 1 or len(spacings) > 1, 'the bands must differ'
+    image, arc_mask = arc_image((-200, 480), 700)
+    detector = LineDetector(config)
+
+    detection = detector.detect(image)
+
+    assert detection.confidence == 1.0
+    for (top, bottom), band_detection in zip(bands, detection.bands):
+        rows, columns = np.nonzero(arc_mask[top:bottom])
+        assert (band_detection.top_px, band_detection.bottom_px) == (top, bottom)
+        assert band_detection.area_px == columns.size
+        assert band_detection.centroid_x_px == pytest.approx(columns.mean(), abs=1e-9)
+        assert band_detection.centroid_y_px == pytest.approx(top + rows.mean(), abs=1e-9)
+    np.testing.assert_array_equal(
+        detector.last_mask, np.concatenate([arc_mask[top:bottom] for top, bottom in bands]))
+    expected_drawn = np.zeros_like(arc_mask)
+    for top, bottom in bands:
+        expected_drawn[top:bottom] = arc_mask[top:bottom]
+    np.testing.assert_array_equal(
+        detector.draw_mask(np.full((HEIGHT_PX, WIDTH_PX), 7, np.uint8)), expected_drawn)
 
 
 # Finding the line.
@@ -348,6 +417,25 @@ def test_other_colours_are_not_the_line(colour_bgr):
     image = floor_image()
     image[:, 300:340] = colour_bgr
     assert not LineDetector().detect(image).found
+
+
+@pytest.mark.parametrize('thresholds', (
+    {},
+    {'hue_min': 15, 'hue_max': 45, 'saturation_min': 150, 'value_min': 80},
+    {'hue_min': 0, 'hue_max': 10, 'saturation_min': 30},
+), ids=('default', 'wider_hue_brighter', 'red'))
+def test_every_colour_is_the_line_exactly_when_opencv_hsv_says_so(thresholds):
+    # One band as tall as the image: the mask covers every pixel of it.
+    config = DetectorConfig(band_count=1, band_center_fraction=0.5,
+                            band_height_px=2 * ALL_COLOURS_SIDE_PX, **thresholds)
+    lower = np.array((config.hue_min, config.saturation_min, config.value_min), np.uint8)
+    upper = np.array((config.hue_max, config.saturation_max, config.value_max), np.uint8)
+    detector = LineDetector(config)
+    for image in all_colour_images():
+        detector.detect(image)
+        np.testing.assert_array_equal(
+            detector.last_mask,
+            cv2.inRange(cv2.cvtColor(image, cv2.COLOR_BGR2HSV), lower, upper))
 
 
 # Choosing the line's stripe.
@@ -516,6 +604,46 @@ def test_new_image_size_forgets_where_the_line_was():
     detection = detector.detect(
         paint_line(vertical_line_image(50, 240, 320, half_width_px=3), 165, half_width_px=3))
     assert detection.nearest.centroid_x_px == pytest.approx(165)
+
+
+def test_stripes_at_the_first_and_last_columns_stay_apart_from_the_next_band():
+    # The nearest two bands each see a stripe at both edges of the image.
+    image = floor_image()
+    for (top, bottom), left_px, right_px in zip(DEFAULT_BANDS, (4, 3), (5, 6)):
+        image[top:bottom, :left_px] = bgr(LIT_YELLOW_RGB)
+        image[top:bottom, WIDTH_PX - right_px:] = bgr(LIT_YELLOW_RGB)
+    rows = DEFAULT_BANDS[0][1] - DEFAULT_BANDS[0][0]
+    config = DetectorConfig(min_area_px=1, max_stripe_jump_fraction=1.0)
+    right_detector = LineDetector(config)
+    right_detector.detect(vertical_line_image(WIDTH_PX - 1, half_width_px=0))
+    left_detector = LineDetector(config)
+    left_detector.detect(vertical_line_image(0, half_width_px=0))
+
+    right = right_detector.detect(image).bands
+    left = left_detector.detect(image).bands
+
+    assert [(band.area_px, band.centroid_x_px) for band in right[:2]] == [
+        (5 * rows, WIDTH_PX - 3.0), (6 * rows, WIDTH_PX - 3.5)]
+    assert [(band.area_px, band.centroid_x_px) for band in left[:2]] == [
+        (4 * rows, 1.5), (3 * rows, 1.0)]
+
+
+def test_line_is_chosen_among_many_specks_that_each_count_as_a_stripe():
+    config = DetectorConfig(min_area_px=1)
+    image = vertical_line_image(400)
+    speck_columns = [column for column in range(4, WIDTH_PX - 4, 12) if abs(column - 400) > 16]
+    for top, _ in DEFAULT_BANDS:
+        for column in speck_columns:
+            image[top + 1:top + 3, column:column + 2] = bgr(LIT_YELLOW_RGB)
+    detector = LineDetector(config)
+    detector.detect(vertical_line_image(405))
+
+    detection = detector.detect(image)
+
+    assert len(speck_columns) * len(DEFAULT_BANDS) > 100, 'the specks must be many'
+    assert centroids_px(detection) == pytest.approx([400.0] * len(DEFAULT_BANDS))
+    assert [band.area_px for band in detection.bands] == [
+        LINE_WIDTH_PX * (bottom - top) for top, bottom in DEFAULT_BANDS]
 
 
 # Camera noise.
