@@ -646,7 +646,7 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='runs at a time, each in its own process (default: the CPU count)')
     parser.add_argument('--domain-id', type=_domain_id_option, default=None, metavar='ID',
                         help='ROS domain of the first worker; worker k uses ID + k (default: '
-                             f'{FIRST_DOMAIN_ID} + pid % {DOMAIN_ID_SPREAD})')
+                             f'{FIRST_DOMAIN_ID} + pid %% {DOMAIN_ID_SPREAD})')
     parser.add_argument('--time-limit-s', type=_positive, default=None, metavar='SECONDS',
                         help='simulated seconds a run may take (default: '
                              f'{TIME_LIMIT_LAPS:g} x course length / {BOOK_SPEED_MPS:g} m/s)')
