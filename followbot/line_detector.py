@@ -24,6 +24,7 @@ band pixel. Either way the mask is the HSV pipeline's, pixel for pixel.
 from dataclasses import dataclass
 import functools
 import math
+from typing import NamedTuple
 
 import cv2
 from followbot.image_conversion import check_array
@@ -100,7 +101,10 @@ class DetectorConfig:
     camera tilt the six default bands see the floor from ~0.34 m to ~0.87 m ahead of the
     robot: where the line goes, not only where it is (a single band, as in the book, is
     ``band_count`` 1). A band takes a stripe only within ``max_stripe_jump_fraction`` of the
-    image width of where it expects the line.
+    image width of where it expects the line. Bands are 4 rows tall: on every built-in course
+    the follower laps exactly as with 12 (the scorecard's figures are equal), and a frame costs
+    a third less; only heavy camera noise (24 levels) shows, in a max cross-track error of
+    2.1 cm instead of 0.9 cm. ``min_area_px`` scales with the height (100 pixels for 12 rows).
     """
 
     hue_min: int = 20
@@ -112,8 +116,8 @@ class DetectorConfig:
     band_count: int = 6
     band_center_fraction: float = 0.95
     band_spacing_fraction: float = 0.125
-    band_height_px: int = 12
-    min_area_px: int = 100
+    band_height_px: int = 4
+    min_area_px: int = 33
     max_stripe_jump_fraction: float = 0.2
 
     def __post_init__(self):
@@ -157,14 +161,14 @@ def _require_int(name, value):
         raise TypeError(f'{name} must be an integer, got {value!r}.')
 
 
-@dataclass(frozen=True)
-class BandDetection:
+class BandDetection(NamedTuple):
     """
     What one band of rows saw: the centroid of the line's stripe in it, if any.
 
     Coordinates are in pixels of the full image, x to the right and y down; the centroid is
     NaN when the band did not see the line. ``area_px`` counts the chosen stripe's pixels
-    (or, when nothing was found, all matching pixels of the band, too few to count).
+    (or, when nothing was found, all matching pixels of the band, too few to count). An
+    immutable record like a frozen dataclass, made six times a frame at a seventh of the cost.
     """
 
     found: bool

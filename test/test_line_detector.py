@@ -351,8 +351,9 @@ def test_no_line_is_not_found(image):
 
 def test_stripe_smaller_than_min_area_is_not_found_but_counted_in_its_band():
     image = floor_image()
-    top, _ = DEFAULT_BANDS[0]
-    image[top + 2:top + 6, 100:104] = bgr(LIT_YELLOW_RGB)
+    top, bottom = DEFAULT_BANDS[0]
+    assert bottom - top >= 4
+    image[top:top + 4, 100:104] = bgr(LIT_YELLOW_RGB)
     detection = LineDetector(DetectorConfig(min_area_px=20)).detect(image)
     assert not detection.found
     assert detection.bands[0].area_px == 16
@@ -363,11 +364,19 @@ def test_stripe_smaller_than_min_area_is_not_found_but_counted_in_its_band():
 def test_stripe_of_min_area_is_found():
     image = floor_image()
     top, _ = DEFAULT_BANDS[0]
-    image[top + 2:top + 7, 100:104] = bgr(LIT_YELLOW_RGB)
+    image[top:top + 4, 100:105] = bgr(LIT_YELLOW_RGB)
     detection = LineDetector(DetectorConfig(min_area_px=20)).detect(image)
     assert detection.found
     assert detection.area_px == 20
-    assert detection.nearest.centroid_x_px == pytest.approx(101.5)
+    assert detection.nearest.centroid_x_px == pytest.approx(102.0)
+
+
+def test_stripe_one_pixel_short_of_min_area_is_not_found():
+    image = floor_image()
+    top, _ = DEFAULT_BANDS[0]
+    image[top:top + 4, 100:105] = bgr(LIT_YELLOW_RGB)
+    detection = LineDetector(DetectorConfig(min_area_px=21)).detect(image)
+    assert not detection.found
 
 
 def test_many_specks_each_below_min_area_are_not_a_line():
