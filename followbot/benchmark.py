@@ -38,7 +38,7 @@ from followbot.node_runner import StopSignals
 from followbot.transport import (environment_with_profile, environment_without_profile,
                                  keep_large_buffers)
 from followbot_sim.course_file import load_course
-from followbot_sim.sim_node import SCORE_STATUS_NAME
+from followbot_sim.sim_node import SCORE_STATUS_NAME, SIMULATOR_NODE
 from followbot_sim.world import FollowbotWorld
 import mujoco
 import numpy as np
@@ -46,6 +46,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from std_srvs.srv import SetBool
 
 SECTIONS = ('perception', 'latency', 'simulation')
 COURSE = 'book_loop'
@@ -206,8 +207,10 @@ def format_perception(results: dict) -> str:
     :return: Markdown.
     """
     book_us = results['book_full_frame']['median_us']
+    config = DetectorConfig()
     names = {
-        'followbot': "followbot's detector (6 bands of 12 rows)",
+        'followbot': f"followbot's detector ({config.band_count} bands of "
+                     f'{config.band_height_px} rows)',
         'followbot_book_band': "followbot's detector on the book's band (1 band, 20 rows)",
         'book_full_frame': "the book's pipeline (whole frame to HSV, 1 band)",
     }
@@ -376,7 +379,9 @@ class _ScoreListener(Node):
         super().__init__('benchmark_score_listener', **kwargs)
         self.samples = []  # (wall s, simulated s)
         self.summary = {}
-        self.create_subscription(DiagnosticArray, '/diagnostics', self.callback, 10)
+        self.subscription = self.create_subscription(
+            DiagnosticArray, '/diagnostics', self.callback, 10)
+        self.pause_client = self.create_client(SetBool, f'/{SIMULATOR_NODE}/pause')
 
     def callback(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -406,14 +411,24 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
     follower = ChildProcess('followbot.follower_node', [
         '--ros-args', '-p', 'use_sim_time:=true', '--log-level', 'warn'],
         environment, log_folder / 'follower_simulation.log')
+    # Started paused, and let go once this process hears its score: a fast run could
+    # otherwise be over before discovery has connected the listener.
     simulator = ChildProcess('followbot_sim.sim_node', [
         '--ros-args', '-p', 'lockstep:=true', '-p', 'real_time_factor:=0.0',
+        '-p', 'start_paused:=true',
         '-p', f'run_duration_s:={float(simulated_s)}', '-p', f'course:={COURSE}',
         '-p', f'image_width_px:={IMAGE_WIDTH_PX}', '-p', f'image_height_px:={IMAGE_HEIGHT_PX}',
         '-p', f'camera_rate_hz:={CAMERA_RATE_HZ}', '-p', 'score_period_s:=1.0'],
         environment, log_folder / 'sim_simulation.log')
     result = {'simulated_s': simulated_s, 'profile': profile}
     try:
+        deadline_s = time.monotonic() + PROCESS_GRACE_S
+        while not (listener.subscription.get_publisher_count() > 0
+                   and listener.pause_client.service_is_ready()):
+            if stop.is_set() or time.monotonic() > deadline_s or not simulator.running():
+                break
+            executor.spin_once(timeout_sec=POLL_S)
+        listener.pause_client.call_async(SetBool.Request(data=False))
         deadline_s = time.monotonic() + simulated_s + PROCESS_GRACE_S
         while simulator.running() and not stop.is_set():
             follower.sample_memory()

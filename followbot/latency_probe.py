@@ -20,14 +20,13 @@ import sys
 import time
 
 from followbot.image_conversion import array_to_image
-from followbot.node_runner import StopSignals
+from followbot.node_runner import NodeExecutor, StopSignals
 from followbot.transport import keep_large_buffers
 from followbot_sim import frames as frame_names
 from followbot_sim import messages
 from geometry_msgs.msg import TwistStamped
 import numpy as np
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
@@ -162,7 +161,8 @@ def main(argv=None) -> int:
     stop = StopSignals().install()
     probe = LatencyProbe(frames_bgr, tuple(options.intrinsics), options.rate_hz,
                          options.frames)
-    executor = SingleThreadedExecutor()
+    # The executor the simulator runs on, so the camera side answers as quickly as it would.
+    executor = NodeExecutor()
     executor.add_node(probe)
     try:
         found = _spin_until(executor, lambda: probe.follower_present, CONNECT_TIMEOUT_S, stop)

@@ -48,6 +48,7 @@ try:
 except ImportError:  # tf2_msgs is not on PyPI; a sourced ROS 2 install has it.
     TFMessage = None
 
+SIMULATOR_NODE = 'followbot_sim'
 SCORE_STATUS_NAME = 'followbot_sim: course score'
 IMAGE_ENCODINGS = ('bgr8', 'rgb8')
 SIMULATOR_PARAMETERS = {
@@ -189,7 +190,7 @@ class SimulatorNode(Node):
         :raises ValueError: for a parameter value the simulator cannot use (unknown course,
             unreadable course file, unknown image encoding).
         """
-        super().__init__('followbot_sim', **kwargs)
+        super().__init__(SIMULATOR_NODE, **kwargs)
         parameters = declare_parameters(self, SIMULATOR_PARAMETERS)
         self._real_time_factor = parameters['real_time_factor']
         self._overview_size_px = parameters['overview_size_px']
