@@ -682,14 +682,19 @@ class LineDetector:
         occupied = layout.occupied
         np.not_equal(column_sums[0], layout.no_pixels, out=occupied[1:])
         np.not_equal(occupied[1:], occupied[:-1], out=layout.changes)
-        edges = np.flatnonzero(layout.changes)
+        edges = layout.changes.nonzero()[0]
         stripes_by_band = [None] * count
         if not edges.size:
             return stripes_by_band
         np.multiply(stats[0], layout.column_index, out=stats[2])
         bounds = edges.reshape(-1, 2)
         if len(bounds) <= _STRIPES_LISTED:
-            areas, y_moments, x_moments = np.add.reduceat(stats, edges, axis=1)[:, 0::2]
+            # The usual case, a stripe or two a band: one conversion to Python numbers each
+            # for the edges and the sums, as every NumPy call costs a microsecond or more.
+            edge_list = edges.tolist()
+            areas, y_moments, x_moments = np.add.reduceat(stats, edges, axis=1)[:, 0::2].tolist()
+            return self._listed_stripes(stripes_by_band, edge_list[0::2], edge_list[1::2],
+                                        areas, x_moments, y_moments)
         else:
             # Many specks: sum the areas, then the moments of the stripes large enough only.
             areas = np.add.reduceat(stats[0], edges)[0::2]
@@ -709,12 +714,20 @@ class LineDetector:
                 if last > first:
                     stripes_by_band[count - 1 - top_down] = table[:, first:last]
             return stripes_by_band
+        return self._listed_stripes(stripes_by_band, bounds[:, 0].tolist(),
+                                    bounds[:, 1].tolist(), areas.tolist(), x_moments.tolist(),
+                                    y_moments.tolist())
+
+    def _listed_stripes(self, stripes_by_band, starts, ends, areas, x_moments, y_moments):
+        """Fill each band's list of large enough stripes from per-stripe Python numbers."""
+        stride = self._layout.stride
+        last_index = len(stripes_by_band) - 1
         min_area_px = self._config.min_area_px
-        for (start, end), area, x_moment, y_moment in zip(
-                bounds.tolist(), areas.tolist(), x_moments.tolist(), y_moments.tolist()):
+        for start, end, area, x_moment, y_moment in zip(starts, ends, areas, x_moments,
+                                                        y_moments):
             if area >= min_area_px:
-                top_down_index, first_column = divmod(start, layout.stride)
-                index = count - 1 - top_down_index
+                top_down_index, first_column = divmod(start, stride)
+                index = last_index - top_down_index
                 if stripes_by_band[index] is None:
                     stripes_by_band[index] = []
                 stripes_by_band[index].append(
@@ -738,7 +751,12 @@ class LineDetector:
                 allowed_px = max_jump_px
                 if not math.isfinite(expected_x_px):
                     expected_x_px, allowed_px = width / 2.0, math.inf
-                stripe, distance_px = _nearest_stripe(stripes, expected_x_px)
+                if type(stripes) is list and len(stripes) == 1:
+                    # The usual case, worth the few lines: no call per band.
+                    stripe = stripes[0]
+                    distance_px = max(stripe[0] - expected_x_px, expected_x_px - stripe[1], 0)
+                else:
+                    stripe, distance_px = _nearest_stripe(stripes, expected_x_px)
                 if distance_px > allowed_px:
                     stripe = None
             if stripe is None:
