@@ -83,7 +83,8 @@ def test_a_short_benchmark_measures_every_section(tmp_path):
     report = json.loads(figures_file.read_text())
 
     perception = report['perception']
-    for pipeline in ('followbot', 'followbot_book_band', 'book_full_frame'):
+    for pipeline in ('followbot', 'followbot_book_band', 'book_full_frame',
+                     'book_opencv_only'):
         assert perception[pipeline]['calls'] == 2 * FRAME_COUNT
         assert 0.0 < perception[pipeline]['median_us'] <= perception[pipeline]['p99_us']
 
