@@ -36,6 +36,7 @@ from followbot.image_conversion import array_to_image, image_to_array
 from followbot.line_detector import DetectorConfig, LineDetector
 from followbot.node_runner import StopSignals
 from followbot.transport import (environment_with_profile, environment_without_profile,
+                                 FASTDDS_PROFILE_NAME, fastdds_profile_path,
                                  keep_large_buffers)
 from followbot_sim.course_file import load_course
 from followbot_sim.sim_node import SCORE_STATUS_NAME, SIMULATOR_NODE
@@ -361,13 +362,16 @@ def format_latency(results: list) -> str:
     :return: Markdown.
     """
     rows = []
+    package_profile = str(fastdds_profile_path())
     for result in results:
+        profile = result['profile']
+        if profile == package_profile:
+            profile = f"the package's profile ({FASTDDS_PROFILE_NAME})"
         if 'error' in result:
-            rows.append((f"{result['rate_hz']:g} Hz", result['profile'], 'failed', '', '', '',
-                         '', ''))
+            rows.append((f"{result['rate_hz']:g} Hz", profile, 'failed', '', '', '', '', ''))
             continue
         rows.append((
-            f"{result['rate_hz']:g} Hz", result['profile'], _number(result['p50_ms'], 2),
+            f"{result['rate_hz']:g} Hz", profile, _number(result['p50_ms'], 2),
             _number(result['p99_ms'], 2), _number(result['max_ms'], 2),
             f"{result['dropped']} of {result['frames']}",
             _number(result['peak_memory_follower_mib'], 0),
