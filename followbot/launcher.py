@@ -21,8 +21,7 @@ import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
 from followbot.node_runner import StopSignals
-from followbot.transport import (environment_with_profile, FASTDDS_PROFILE_VARIABLE,
-                                 keep_large_buffers)
+from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot_sim import messages
 from followbot_sim.course_library import COURSES
 from followbot_sim.sim_node import SCORE_STATUS_NAME
@@ -227,10 +226,11 @@ def main(argv=None) -> int:
     :return: the exit code: 0 when both nodes ran and stopped cleanly.
     """
     options = parse_arguments(argv)
-    # The Fast DDS profile for images, here too, before this process makes its participant.
+    # The Fast DDS profile for the nodes, which publish the images. This process only listens:
+    # it keeps Fast DDS's small default segment (each process's segment takes its full size
+    # in /dev/shm, and a launcher killed outright could not remove it).
     environment, profile = environment_with_profile(
         dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0'))
-    os.environ[FASTDDS_PROFILE_VARIABLE] = profile
     keep_large_buffers()
     if options.domain_id is not None:
         environment['ROS_DOMAIN_ID'] = str(options.domain_id)

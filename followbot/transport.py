@@ -6,7 +6,7 @@ its 0.9 MB (~25 us):
 
 * Fast DDS's default shared-memory segment (512 KiB) is too small for it, so the frame goes by
   UDP in 64 KB fragments; a best-effort subscriber then loses about half of the frames. The
-  package's profile, ``config/fastdds_shm.xml``, gives each participant a 32 MiB segment.
+  package's profile, ``config/fastdds_shm.xml``, gives each participant a 16 MiB segment.
 * Each frame passes through several fresh 0.9 MB buffers (the rclpy message, the serialised
   sample, the received sample). glibc serves blocks that large with mmap and returns them on
   free, so every frame faults in ~225 new pages per buffer: that doubled the transport time.
