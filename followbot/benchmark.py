@@ -33,13 +33,14 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import array_to_image, image_to_array
-from followbot.line_detector import DetectorConfig, LineDetector
-from followbot.node_runner import StopSignals
+from followbot.line_detector import DetectorConfig, hsv_bounds, LineDetector
+from followbot.node_runner import die_with_parent, StopSignals
 from followbot.transport import (environment_with_profile, environment_without_profile,
                                  FASTDDS_PROFILE_NAME, fastdds_profile_path,
                                  keep_large_buffers)
+from followbot_sim import messages
 from followbot_sim.course_file import load_course
-from followbot_sim.sim_node import SCORE_STATUS_NAME, SIMULATOR_NODE
+from followbot_sim.sim_node import SIMULATOR_NODE
 from followbot_sim.world import FollowbotWorld
 import mujoco
 import numpy as np
@@ -67,6 +68,8 @@ KIB_PER_MIB = 1024
 PROCESS_GRACE_S = 60.0
 STOP_GRACE_S = 5.0
 POLL_S = 0.05
+# How long the score the simulator publishes as it ends may take to arrive.
+LAST_SCORE_WAIT_S = 0.5
 
 
 def _percentiles(values) -> dict:
@@ -128,10 +131,7 @@ class BookPipeline:
 
         :param config: its hue, saturation and value bounds are used.
         """
-        self._lower_hsv = np.array((config.hue_min, config.saturation_min, config.value_min),
-                                   np.uint8)
-        self._upper_hsv = np.array((config.hue_max, config.saturation_max, config.value_max),
-                                   np.uint8)
+        self._lower_hsv, self._upper_hsv = hsv_bounds(config)
 
     def detect(self, image_bgr: np.ndarray):
         """
@@ -153,12 +153,12 @@ class BookPipeline:
         return moments['m10'] / moments['m00']
 
 
-def _time_per_frame_us(function, messages, repeats: int) -> np.ndarray:
+def _time_per_frame_us(function, image_messages, repeats: int) -> np.ndarray:
     """Call ``function(msg)`` on every message, ``repeats`` times over, and time each call."""
-    times_us = np.empty(len(messages) * repeats)
+    times_us = np.empty(len(image_messages) * repeats)
     index = 0
     for _ in range(repeats):
-        for msg in messages:
+        for msg in image_messages:
             start_s = time.perf_counter()
             function(msg)
             times_us[index] = (time.perf_counter() - start_s) * US_PER_S
@@ -247,7 +247,8 @@ class ChildProcess:
         self._log = open(log_path, 'w')
         self.process = subprocess.Popen(
             [sys.executable, '-m', module, *arguments], env=environment,
-            stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT)
+            stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
+            preexec_fn=die_with_parent)
         self.peak_memory_mib = None
 
     def sample_memory(self) -> None:
@@ -392,10 +393,10 @@ class _ScoreListener(Node):
         self.pause_client = self.create_client(SetBool, f'/{SIMULATOR_NODE}/pause')
 
     def callback(self, msg: DiagnosticArray) -> None:
-        for status in msg.status:
-            if status.name == SCORE_STATUS_NAME:
-                self.summary = {value.key: value.value for value in status.values}
-                self.samples.append((time.monotonic(), float(self.summary['time_s'])))
+        summary = messages.score_values(msg)
+        if summary is not None:
+            self.summary = summary
+            self.samples.append((time.monotonic(), float(summary['time_s'])))
 
 
 def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
@@ -439,13 +440,12 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
         listener.pause_client.call_async(SetBool.Request(data=False))
         deadline_s = time.monotonic() + simulated_s + PROCESS_GRACE_S
         while simulator.running() and not stop.is_set():
-            follower.sample_memory()
             if time.monotonic() > deadline_s:
                 result['error'] = 'the simulator did not finish in time'
                 break
             executor.spin_once(timeout_sec=POLL_S)
         # The last score is published as the run ends: take what is still on its way.
-        end_s = time.monotonic() + 0.5
+        end_s = time.monotonic() + LAST_SCORE_WAIT_S
         while time.monotonic() < end_s:
             executor.spin_once(timeout_sec=POLL_S)
     finally:

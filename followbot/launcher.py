@@ -8,7 +8,6 @@ progress lines and, on request, saves pictures of the camera's debug view and of
 """
 
 import argparse
-import ctypes
 import os
 from pathlib import Path
 import signal
@@ -20,11 +19,10 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
-from followbot.node_runner import StopSignals
+from followbot.node_runner import die_with_parent, StopSignals
 from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot_sim import messages
 from followbot_sim.course_library import COURSES
-from followbot_sim.sim_node import SCORE_STATUS_NAME
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -33,8 +31,6 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Image
 
-# Linux: have the kernel send SIGTERM to a child when this process dies, even by SIGKILL.
-PR_SET_PDEATHSIG = 1
 STOP_GRACE_S = 5.0
 MONITOR_SPIN_S = 0.1
 REPORT_TOLERANCE_S = 1e-3
@@ -42,11 +38,6 @@ DEBUG_IMAGE_TOPIC = 'follower/debug_image'
 OVERVIEW_IMAGE_TOPIC = 'overview/image'
 CAMERA_PICTURE = 'camera_debug.png'
 OVERVIEW_PICTURE = 'overview.png'
-
-
-def _die_with_parent():
-    libc = ctypes.CDLL('libc.so.6', use_errno=True)
-    libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:
@@ -104,7 +95,7 @@ class ChildProcess:
         self.process = subprocess.Popen(
             command, env=environment, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True,
-            preexec_fn=_die_with_parent)
+            preexec_fn=die_with_parent)
         self._forwarder = threading.Thread(target=self._forward_output, daemon=True)
         self._forwarder.start()
 
@@ -159,17 +150,17 @@ class MonitorNode(Node):
 
     def diagnostics_callback(self, msg: DiagnosticArray) -> None:
         """Keep the latest score and print a progress line when one is due."""
-        for status in msg.status:
-            if status.name != SCORE_STATUS_NAME:
-                continue
-            self.summary = {value.key: value.value for value in status.values}
-            time_s = float(self.summary['time_s'])
-            laps = int(self.summary['laps_completed'])
-            # Score stamps are multiples of the period up to float rounding: allow for it.
-            if laps > self._laps_reported or time_s + REPORT_TOLERANCE_S >= self._next_report_s:
-                self._laps_reported = laps
-                self._next_report_s = time_s + self._report_period_s
-                print('[followbot] ' + format_progress(self.summary), flush=True)
+        summary = messages.score_values(msg)
+        if summary is None:
+            return
+        self.summary = summary
+        time_s = float(summary['time_s'])
+        laps = int(summary['laps_completed'])
+        # Score stamps are multiples of the period up to float rounding: allow for it.
+        if laps > self._laps_reported or time_s + REPORT_TOLERANCE_S >= self._next_report_s:
+            self._laps_reported = laps
+            self._next_report_s = time_s + self._report_period_s
+            print('[followbot] ' + format_progress(summary), flush=True)
 
     def debug_image_callback(self, msg: Image) -> None:
         """Save the follower's view about once a second of simulated time."""

@@ -264,8 +264,13 @@ def band_rows(image_height_px, config):
     return bands
 
 
-def _hsv_bounds(config):
-    """Return the (lower, upper) HSV bounds of a config as uint8 arrays for cv2.inRange."""
+def hsv_bounds(config):
+    """
+    Return the line's colour bounds as OpenCV takes them.
+
+    :param config: a DetectorConfig.
+    :return: (lower, upper) HSV uint8 arrays for ``cv2.inRange``.
+    """
     lower = np.array((config.hue_min, config.saturation_min, config.value_min), np.uint8)
     upper = np.array((config.hue_max, config.saturation_max, config.value_max), np.uint8)
     return lower, upper
@@ -508,7 +513,7 @@ class LineDetector:
         :param config: thresholds and band geometry; the defaults suit the course.
         """
         self._config = config
-        self._lower_hsv, self._upper_hsv = _hsv_bounds(config)
+        self._lower_hsv, self._upper_hsv = hsv_bounds(config)
         self._rule = _colour_rule(config.hue_min, config.hue_max, config.saturation_min,
                                   config.saturation_max, config.value_min, config.value_max)
         self._image_shape = None

@@ -1,5 +1,6 @@
 """Run one node in its own process the same way for every followbot executable."""
 
+import ctypes
 import signal
 
 from followbot.transport import keep_large_buffers
@@ -21,6 +22,8 @@ except ImportError:  # An rclpy without it: the standard executor works the same
 # message comes.
 SPIN_POLL_S = 0.1
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# Linux prctl option: the signal the kernel sends a process when its parent dies.
+PR_SET_PDEATHSIG = 1
 
 
 class StopSignals:
@@ -54,6 +57,16 @@ class StopSignals:
     def is_set(self) -> bool:
         """Return whether a stop signal came."""
         return bool(self._received)
+
+
+def die_with_parent() -> None:
+    """
+    Have the kernel send this process SIGTERM when its parent dies, even by SIGKILL (Linux).
+
+    For ``subprocess.Popen(preexec_fn=...)``: a node started by a tool then never outlives it.
+    """
+    libc = ctypes.CDLL('libc.so.6', use_errno=True)
+    libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 def run_node(node_class, args=None, startup_errors=()) -> None:

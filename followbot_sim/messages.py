@@ -15,6 +15,8 @@ import numpy as np
 from sensor_msgs.msg import CameraInfo, JointState, PointCloud2, PointField
 
 NANOSECONDS_PER_SECOND = 1_000_000_000
+# Name of the simulator's ground-truth score among the statuses on /diagnostics.
+SCORE_STATUS_NAME = 'followbot_sim: course score'
 # x, y and z as float32 one after the other: the layout PCL and RViz read directly.
 POINT_FIELDS = tuple(PointField(name=name, offset=4 * index, datatype=PointField.FLOAT32,
                                 count=1) for index, name in enumerate('xyz'))
@@ -47,6 +49,20 @@ def seconds(time_msg: Time) -> float:
     :return: seconds as a float.
     """
     return time_msg.sec + time_msg.nanosec / NANOSECONDS_PER_SECOND
+
+
+def score_values(diagnostics) -> dict | None:
+    """
+    Return the simulator's score in a ``diagnostic_msgs/DiagnosticArray``, if it holds it.
+
+    :param diagnostics: a message from ``/diagnostics``.
+    :return: the score's key -> text values (``time_s``, ``laps_completed``, ...), or None
+        when the message carries no score.
+    """
+    for status in diagnostics.status:
+        if status.name == SCORE_STATUS_NAME:
+            return {value.key: value.value for value in status.values}
+    return None
 
 
 def camera_info(intrinsics: tuple, size_px: tuple, frame_id: str) -> CameraInfo:

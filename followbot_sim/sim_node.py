@@ -49,7 +49,6 @@ except ImportError:  # tf2_msgs is not on PyPI; a sourced ROS 2 install has it.
     TFMessage = None
 
 SIMULATOR_NODE = 'followbot_sim'
-SCORE_STATUS_NAME = 'followbot_sim: course score'
 IMAGE_ENCODINGS = ('bgr8', 'rgb8')
 SIMULATOR_PARAMETERS = {
     'course': ParameterSpec(
@@ -685,7 +684,8 @@ class SimulatorNode(Node):
         self._last_score_stamp = stamp
         summary = self._lap_tracker.summary()
         status = DiagnosticStatus(
-            level=DiagnosticStatus.OK, name=SCORE_STATUS_NAME, hardware_id='followbot_sim',
+            level=DiagnosticStatus.OK, name=messages.SCORE_STATUS_NAME,
+            hardware_id=SIMULATOR_NODE,
             message=f"{summary['laps_completed']} laps, "
                     f'{100 * self._lap_tracker.distance_from_line_m:.1f} cm from the line')
         status.values = [KeyValue(key=key, value=str(value)) for key, value in summary.items()]

@@ -7,6 +7,8 @@ A client node publishes Twists; the simulator's own world gives the ground truth
 import math
 
 from conftest import SimHarness
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from followbot_sim.messages import score_values
 from followbot_sim.sim_node import SimulatorNode
 from geometry_msgs.msg import Twist, Vector3
 import pytest
@@ -71,3 +73,24 @@ def test_bad_parameters_are_refused_at_start(ros_context, name, value):
     with pytest.raises((ParameterException, ValueError)) as raised:
         SimulatorNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
     assert name in str(raised.value) or str(value) in str(raised.value)
+
+
+def test_the_score_on_diagnostics_reads_back_with_score_values(sim):
+    scores = []
+
+    def keep_score(msg):
+        score = score_values(msg)
+        if score is not None:
+            scores.append(score)
+
+    sim.client.create_subscription(DiagnosticArray, '/diagnostics', keep_score, 10)
+    sim.spin_until(lambda: scores)
+    assert float(scores[0]['time_s']) == pytest.approx(1.0)
+    assert scores[0]['laps_completed'] == '0'
+    assert float(scores[0]['course_length_m']) == pytest.approx(sim.world.course.length_m)
+
+
+def test_score_values_is_none_for_other_statuses():
+    other = DiagnosticArray(status=[DiagnosticStatus(name='some driver: temperature')])
+    assert score_values(other) is None
+    assert score_values(DiagnosticArray()) is None
