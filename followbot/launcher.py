@@ -19,7 +19,7 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
-from followbot.node_runner import die_with_parent, StopSignals
+from followbot.node_runner import die_with_parent, init_rclpy, RosArgumentsError, StopSignals
 from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot_sim import messages
 from followbot_sim.course_library import COURSES
@@ -38,6 +38,37 @@ DEBUG_IMAGE_TOPIC = 'follower/debug_image'
 OVERVIEW_IMAGE_TOPIC = 'overview/image'
 CAMERA_PICTURE = 'camera_debug.png'
 OVERVIEW_PICTURE = 'overview.png'
+# rcl's markers around ROS arguments on a command line.
+ROS_ARGS_FLAG = '--ros-args'
+ROS_ARGS_END = '--'
+
+
+def split_ros_arguments(argv: list) -> tuple:
+    """
+    Separate ROS arguments from this program's own, as rcl does.
+
+    A ROS section starts at ``--ros-args`` and runs to ``--`` or the end; there may be several.
+
+    :param argv: arguments without the program name.
+    :return: ``(own, ros)``: this program's arguments, and the ROS sections with their markers,
+        each closed by ``--`` so that more arguments can follow them.
+    """
+    own, ros = [], []
+    in_ros_section = False
+    for argument in argv:
+        if argument == ROS_ARGS_FLAG:
+            in_ros_section = True
+            ros.append(argument)
+        elif in_ros_section and argument == ROS_ARGS_END:
+            in_ros_section = False
+            ros.append(argument)
+        elif in_ros_section:
+            ros.append(argument)
+        else:
+            own.append(argument)
+    if in_ros_section:
+        ros.append(ROS_ARGS_END)
+    return own, ros
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:
@@ -45,26 +76,36 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     Read the command line.
 
     :param argv: arguments without the program name; ``sys.argv[1:]`` when None.
-    :return: the parsed options.
+    :return: the parsed options; ``ros_arguments`` holds the ROS sections, for both nodes.
     """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    own_arguments, ros_arguments = split_ros_arguments(argv)
     parser = argparse.ArgumentParser(
         prog='followbot',
+        usage='%(prog)s [options] [--ros-args ...]',
         description='Run the MuJoCo simulator and the line follower as two ROS 2 processes '
-                    'and report laps, lap times and distance from the line.')
+                    'and report laps, lap times and distance from the line.',
+        epilog='ROS arguments after --ros-args go to both nodes, before the options above '
+               '(which therefore win over a --params-file): remaps such as '
+               '-r __ns:=/robot1 or -r cmd_vel:=cmd_vel_mux/input/teleop, -p name:=value, '
+               '--params-file FILE, --log-level. A node ignores parameters it does not '
+               'declare; prefix a remap with a node name (follower:, followbot_sim:) to '
+               'aim it at one node.')
     parser.add_argument('--duration', type=float, default=240.0, metavar='SECONDS',
                         help='simulated seconds to run; 0 runs until Ctrl-C (default: 240)')
     parser.add_argument('--real-time-factor', type=float, default=1.0, metavar='FACTOR',
                         help='simulated seconds per wall second; 0 = as fast as the machine '
                              'allows (default: 1)')
-    parser.add_argument('--lockstep', action='store_true',
+    parser.add_argument('--lockstep', action='store_true', default=None,
                         help='let the follower drive time: the simulator waits for the '
                              'command answering each camera frame (runs are reproducible)')
     parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
                         help="ROS_DOMAIN_ID for both nodes (default: the environment's, or 0)")
-    parser.add_argument('--course', default='book_loop',
+    parser.add_argument('--course', default=None,
                         help='a built-in course (' + ', '.join(COURSES) + ') or the path of a '
-                             'YAML course file (default: book_loop)')
-    parser.add_argument('--lighting', action='store_true',
+                             "YAML course file (default: the simulator's course parameter, "
+                             'book_loop)')
+    parser.add_argument('--lighting', action='store_true', default=None,
                         help='add bright and dim zones of light along the line')
     parser.add_argument('--report-period', type=float, default=10.0, metavar='SECONDS',
                         help='simulated seconds between progress lines (default: 10)')
@@ -72,7 +113,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help=f"save {CAMERA_PICTURE} (camera view with the follower's "
                              f'overlay) and {OVERVIEW_PICTURE} (course from above with the '
                              'path driven) here while running')
-    options = parser.parse_args(argv)
+    options = parser.parse_args(own_arguments)
+    options.ros_arguments = ros_arguments
     if options.duration < 0 or options.real_time_factor < 0 or options.report_period <= 0:
         parser.error('--duration and --real-time-factor must be >= 0, --report-period > 0')
     if options.domain_id is not None and not 0 <= options.domain_id <= 232:
@@ -202,11 +244,18 @@ def format_progress(summary: dict) -> str:
             f"  off line {float(summary['time_off_line_s']):.1f} s")
 
 
-def _node_command(module: str, parameters: dict) -> list:
-    command = [sys.executable, '-m', module, '--ros-args']
+def _node_command(module: str, ros_arguments: list, parameters: dict) -> list:
+    # The user's ROS arguments first: rcl applies parameters in command-line order, so the
+    # options given to this program win over a --params-file.
+    command = [sys.executable, '-m', module, *ros_arguments, ROS_ARGS_FLAG]
     for name, value in parameters.items():
-        command += ['-p', f'{name}:={value}']
+        if value is not None:
+            command += ['-p', f'{name}:={value}']
     return command
+
+
+def _ros_boolean(flag) -> str | None:
+    return None if flag is None else str(bool(flag)).lower()
 
 
 def main(argv=None) -> int:
@@ -232,8 +281,13 @@ def main(argv=None) -> int:
     interrupted = StopSignals().install()
 
     context = Context()
-    rclpy.init(context=context, domain_id=domain_id,
-               signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        # The monitor follows the same remaps and namespace as the nodes it watches.
+        init_rclpy(['followbot', *options.ros_arguments], context=context,
+                   domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+    except RosArgumentsError as error:
+        print(f'[followbot] {error}', file=sys.stderr, flush=True)
+        return 2
     monitor = MonitorNode(options.report_period, options.pictures_dir, context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(monitor)
@@ -243,19 +297,22 @@ def main(argv=None) -> int:
             else 'as fast as possible')
     if options.lockstep:
         pace += ', in lockstep'
-    print(f'[followbot] ROS_DOMAIN_ID={domain_id}; course {options.course}; running {length}, '
+    course = options.course or "the simulator's course parameter"
+    print(f'[followbot] ROS_DOMAIN_ID={domain_id}; course {course}; running {length}, '
           f'{pace}; Fast DDS profile {profile}.', flush=True)
-    simulator = ChildProcess('sim', _node_command('followbot_sim.sim_node', {
+    # Options left out (None) leave the node's own value, or the --params-file's, in force.
+    simulator_parameters = {
         'course': options.course,
-        'lighting_zones': 'true' if options.lighting else 'false',
+        'lighting_zones': _ros_boolean(options.lighting),
         'real_time_factor': float(options.real_time_factor),
-        'lockstep': 'true' if options.lockstep else 'false',
+        'lockstep': _ros_boolean(options.lockstep),
         'run_duration_s': float(options.duration),
         'score_period_s': 1.0,
-    }), environment)
-    follower = ChildProcess('follower', _node_command('followbot.follower_node', {
-        'use_sim_time': 'true',
-    }), environment)
+    }
+    simulator = ChildProcess('sim', _node_command(
+        'followbot_sim.sim_node', options.ros_arguments, simulator_parameters), environment)
+    follower = ChildProcess('follower', _node_command(
+        'followbot.follower_node', options.ros_arguments, {'use_sim_time': 'true'}), environment)
     children = (simulator, follower)
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):

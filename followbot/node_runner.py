@@ -69,6 +69,26 @@ def die_with_parent() -> None:
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
+class RosArgumentsError(ValueError):
+    """The command line's ROS arguments (after ``--ros-args``) are not valid."""
+
+
+def init_rclpy(args=None, **init_options) -> None:
+    """
+    Initialise rclpy, saying in one sentence what rcl refused on the command line.
+
+    :param args: the command line, ``sys.argv`` when None; rcl reads its ROS sections.
+    :param init_options: further keywords for :func:`rclpy.init`.
+    :raises RosArgumentsError: for a remap, parameter or parameters file rcl cannot parse.
+    """
+    try:
+        rclpy.init(args=args, **init_options)
+    except RuntimeError as error:
+        # rcl's message: 'failed to initialize rcl: <what>. Error: <detail>, at <file:line>'.
+        reason = str(error).removeprefix('failed to initialize rcl: ').split(', at ')[0]
+        raise RosArgumentsError(f'Invalid ROS arguments: {reason}') from None
+
+
 def run_node(node_class, args=None, startup_errors=()) -> None:
     """
     Spin a node until Ctrl-C, SIGTERM or its own ``finished`` flag, then clean it up.
@@ -86,7 +106,11 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
     """
     # Before rclpy allocates anything: image buffers are then reused, not re-mapped per frame.
     keep_large_buffers()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        init_rclpy(args, signal_handler_options=SignalHandlerOptions.NO)
+    except RosArgumentsError as error:
+        rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
+        raise SystemExit(2)
     stop_signals = StopSignals().install()
     node = None
     # An executor of our own, not rclpy.spin_once's global one: shutting it down drops its

@@ -1,5 +1,9 @@
-"""Every command of the package explains itself with --help."""
+"""Every command of the package explains itself with --help and refuses bad arguments clearly."""
 
+import subprocess
+import sys
+
+from conftest import child_environment
 from followbot import benchmark, latency_probe, launcher, scorecard
 import pytest
 
@@ -11,3 +15,40 @@ def test_help_prints_the_usage_and_exits_cleanly(command, capsys):
         command.parse_arguments(['--help'])
     assert exit_info.value.code == 0
     assert capsys.readouterr().out.startswith('usage: ')
+
+
+@pytest.mark.parametrize('argv, own, ros', [
+    ([], [], []),
+    (['--duration', '5'], ['--duration', '5'], []),
+    (['--duration', '5', '--ros-args', '-r', '__ns:=/robot1'],
+     ['--duration', '5'], ['--ros-args', '-r', '__ns:=/robot1', '--']),
+    (['--ros-args', '-p', 'a:=1', '--', '--lockstep', '--ros-args', '--log-level', 'warn'],
+     ['--lockstep'],
+     ['--ros-args', '-p', 'a:=1', '--', '--ros-args', '--log-level', 'warn', '--']),
+])
+def test_followbot_separates_ros_arguments_as_rcl_does(argv, own, ros):
+    assert launcher.split_ros_arguments(argv) == (own, ros)
+
+
+def test_followbot_passes_ros_arguments_on_and_keeps_its_options():
+    options = launcher.parse_arguments(
+        ['--duration', '5', '--ros-args', '--params-file', 'my.yaml', '-r', '__ns:=/robot1'])
+    assert options.duration == 5.0
+    assert options.ros_arguments == ['--ros-args', '--params-file', 'my.yaml', '-r',
+                                     '__ns:=/robot1', '--']
+    # Left out, these leave the nodes' own values or the parameters file's in force.
+    assert (options.course, options.lighting, options.lockstep) == (None, None, None)
+
+
+@pytest.mark.parametrize('command', [
+    [sys.executable, '-m', 'followbot.launcher', '--ros-args', '-r', 'no_rule'],
+    [sys.executable, '-m', 'followbot.follower_node', '--ros-args', '--params-file',
+     'missing.yaml'],
+    [sys.executable, '-m', 'followbot_sim.sim_node', '--ros-args', '-p', 'no_value'],
+], ids=['followbot', 'follower', 'sim'])
+def test_invalid_ros_arguments_are_refused_in_one_line(command, tmp_path):
+    result = subprocess.run(command, cwd=tmp_path, env=child_environment(), timeout=60,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert result.returncode == 2, result.stdout
+    assert 'Invalid ROS arguments: ' in result.stdout
+    assert 'Traceback' not in result.stdout
