@@ -202,7 +202,7 @@ def tracking_controller(config, detection=None, floor_xy_m=STRAIGHT_AHEAD_M):
 def book_config():
     """Return the ControllerConfig of config/book_follower.yaml, the book's follower."""
     with open(BOOK_PARAMETERS_FILE, encoding='utf-8') as parameters_file:
-        parameters = yaml.safe_load(parameters_file)['follower']['ros__parameters']
+        parameters = yaml.safe_load(parameters_file)['/**/follower']['ros__parameters']
     names = {field.name for field in fields(ControllerConfig)}
     return ControllerConfig(**{name: value for name, value in parameters.items()
                                if name in names})

@@ -315,15 +315,16 @@ def test_stops_when_the_camera_goes_quiet(harness):
 
 def test_parameters_file_holds_the_code_defaults():
     document = yaml.safe_load(PARAMETERS_FILE.read_text())
-    for node_name, specs in (('follower', FOLLOWER_PARAMETERS),
-                             ('followbot_sim', SIMULATOR_PARAMETERS)):
+    # Keys with '/**/' reach the nodes in any namespace.
+    for node_name, specs in (('/**/follower', FOLLOWER_PARAMETERS),
+                             ('/**/followbot_sim', SIMULATOR_PARAMETERS)):
         values = document[node_name]['ros__parameters']
         assert values == {name: spec.default for name, spec in specs.items()}
 
 
 def test_parameters_file_and_overrides_reach_the_node(ros_context, tmp_path):
     document = yaml.safe_load(PARAMETERS_FILE.read_text())
-    document['follower']['ros__parameters']['linear_speed_mps'] = 0.35
+    document['/**/follower']['ros__parameters']['linear_speed_mps'] = 0.35
     tuned = tmp_path / 'tuned.yaml'
     tuned.write_text(yaml.safe_dump(document))
     harness = Harness(ros_context, cli_args=['--ros-args', '--params-file', str(tuned)])
