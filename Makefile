@@ -10,6 +10,7 @@ VENV ?= .venv
 DEMO_ARGS ?= --duration 240 --pictures-dir pictures
 STAMP := $(VENV)/.followbot-installed
 # Debian's Mesa EGL stack: MuJoCo renders off-screen with it, on the CPU, without a display.
+# (The tests also use libxml2-utils' xmllint, the tool ament_xmllint runs.)
 MESA_EGL_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libgles2
 LDCONFIG := $(shell command -v ldconfig || echo /sbin/ldconfig)
 
@@ -37,13 +38,16 @@ system-deps:
 	if ! $(PYTHON) -c 'import ensurepip, venv' 2> /dev/null; then \
 		missing="$$missing python3-venv"; \
 	fi; \
+	if ! command -v xmllint > /dev/null; then \
+		missing="$$missing libxml2-utils"; \
+	fi; \
 	if [ -n "$$missing" ]; then \
 		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
 		echo "Installing Debian packages:$$missing"; \
 		$$SUDO apt-get update -qq && \
 		DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	else \
-		echo 'Mesa EGL and Python venv present.'; \
+		echo 'Mesa EGL, Python venv and xmllint present.'; \
 	fi
 
 $(STAMP): requirements.txt requirements-test.txt setup.py | system-deps
