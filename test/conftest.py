@@ -1,6 +1,8 @@
 """Shared test helpers: an isolated ROS 2 context per test, and a node-plus-client harness."""
 
 import os
+import signal
+import subprocess
 import time
 
 from geometry_msgs.msg import Twist
@@ -19,6 +21,8 @@ from std_srvs.srv import SetBool, Trigger
 FIRST_TEST_DOMAIN_ID = 120
 TEST_DOMAIN_COUNT = 90
 WAIT_S = 30.0
+# How long a node process may take to stop after SIGINT.
+STOP_TIMEOUT_S = 15.0
 SPIN_S = 0.05
 ROSOUT_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -28,15 +32,17 @@ def run_domain_id() -> int:
     return FIRST_TEST_DOMAIN_ID + os.getpid() % TEST_DOMAIN_COUNT
 
 
-def child_environment(domain_id: int | None = None) -> dict:
+def child_environment(domain_id: int | None = None, base: dict | None = None) -> dict:
     """
     Return the environment for a child process that keeps its DDS traffic on this run's domain.
 
     :param domain_id: the domain; this run's own when None.
-    :return: a copy of this process's environment with the ROS isolation variables set.
+    :param base: the environment to start from, such as a sourced workspace's; this process's
+        own when None.
+    :return: a copy of ``base`` with the ROS isolation variables set.
     """
     domain_id = run_domain_id() if domain_id is None else domain_id
-    return dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+    return dict(os.environ if base is None else base, ROS_DOMAIN_ID=str(domain_id),
                 ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
 
 
@@ -51,6 +57,24 @@ def ros_context(monkeypatch):
         yield context
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def stop_process(process: subprocess.Popen) -> int:
+    """Stop a child as Ctrl-C would and return its exit code; kill it if it does not stop."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.wait(STOP_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        raise
+
+
+def kill_leftovers(*processes: subprocess.Popen) -> None:
+    """Kill the child processes that a failed test left running."""
+    for process in processes:
+        if process.poll() is None:
+            process.kill()
 
 
 def spin_until(executor, condition, timeout_s: float = WAIT_S) -> bool:

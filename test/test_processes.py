@@ -13,7 +13,8 @@ import subprocess
 import sys
 import time
 
-from conftest import child_environment, run_domain_id, spin_until
+from conftest import (child_environment, kill_leftovers, run_domain_id, spin_until,
+                      stop_process, STOP_TIMEOUT_S)
 import cv2
 from followbot.transport import fastdds_profile_path, FASTDDS_PROFILE_VARIABLE
 from followbot_sim.messages import seconds
@@ -28,23 +29,11 @@ from sensor_msgs.msg import CameraInfo, Image
 CAMERA_PERIOD_S = 0.05
 KINECT_FX_PX = 320.0 / 0.5773502691896257  # 60 degrees across 640 px
 DISCOVERY_TIMEOUT_S = 30.0
-STOP_TIMEOUT_S = 15.0
 
 
 def node_command(module: str, *ros_arguments: str) -> list:
     """Return the command line that starts a followbot module as its own process."""
     return [sys.executable, '-m', module, '--ros-args', *ros_arguments]
-
-
-def stop(process: subprocess.Popen) -> int:
-    """Stop a child as Ctrl-C would and return its exit code."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        return process.wait(STOP_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        raise
 
 
 class TopicRecorder:
@@ -85,14 +74,12 @@ def test_sim_and_follower_processes_serve_an_independent_client(ros_context):
         camera_infos = list(recorder.camera_infos)
         clocks = list(recorder.clocks)
         cmd_vels = list(recorder.cmd_vels)
-        assert stop(follower) == 0
+        assert stop_process(follower) == 0
         # The follower's last word is a zero Twist, so the robot does not drive on.
         assert spin_until(executor, lambda: recorder.cmd_vels[-1] == Twist(), 5.0)
-        assert stop(simulator) == 0
+        assert stop_process(simulator) == 0
     finally:
-        for process in (follower, simulator):
-            if process.poll() is None:
-                process.kill()
+        kill_leftovers(follower, simulator)
         executor.shutdown()
         client.destroy_node()
 
@@ -172,10 +159,9 @@ def test_simulator_serves_its_whole_interface_under_a_namespace(ros_context):
             DISCOVERY_TIMEOUT_S), sorted(set(SIMULATOR_TOPICS) - set(received))
         topic_types = dict(client.get_topic_names_and_types())
         service_types = dict(client.get_service_names_and_types())
-        assert stop(simulator) == 0
+        assert stop_process(simulator) == 0
     finally:
-        if simulator.poll() is None:
-            simulator.kill()
+        kill_leftovers(simulator)
         executor.shutdown()
         client.destroy_node()
 
@@ -324,7 +310,7 @@ def test_nodes_stop_on_sigint_even_when_started_with_it_ignored():
     for line in follower.stdout:
         if 'Following the line' in line:
             break
-    assert stop(follower) == 0
+    assert stop_process(follower) == 0
 
 
 def test_simulator_says_clearly_when_it_cannot_render():
