@@ -297,9 +297,10 @@ def main(argv=None) -> int:
             else 'as fast as possible')
     if options.lockstep:
         pace += ', in lockstep'
-    course = options.course or "the simulator's course parameter"
-    print(f'[followbot] ROS_DOMAIN_ID={domain_id}; course {course}; running {length}, '
-          f'{pace}; Fast DDS profile {profile}.', flush=True)
+    # Without --course the simulator's parameter (or a --params-file) decides; it says which.
+    course = f'course {options.course}; ' if options.course else ''
+    print(f'[followbot] ROS_DOMAIN_ID={domain_id}; {course}running {length}, {pace}; '
+          f'Fast DDS profile {profile}.', flush=True)
     # Options left out (None) leave the node's own value, or the --params-file's, in force.
     simulator_parameters = {
         'course': options.course,
