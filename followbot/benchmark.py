@@ -34,7 +34,7 @@ import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import array_to_image, image_to_array
 from followbot.line_detector import DetectorConfig, hsv_bounds, LineDetector
-from followbot.node_runner import die_with_parent, StopSignals
+from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSignals
 from followbot.transport import (environment_with_profile, environment_without_profile,
                                  FASTDDS_PROFILE_NAME, fastdds_profile_path,
                                  keep_large_buffers)
@@ -526,6 +526,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'the process id, in 100..199)')
     parser.add_argument('--json', type=Path, default=None, metavar='FILE',
                         help='also write the figures to this JSON file')
+    argv = sys.argv[1:] if argv is None else list(argv)
+    refuse_ros_arguments(parser, argv, 'it starts its own nodes with the settings it measures.')
     options = parser.parse_args(argv)
     options.sections = [name.strip() for name in options.sections.split(',') if name.strip()]
     unknown = sorted(set(options.sections) - set(SECTIONS))

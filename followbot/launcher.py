@@ -19,7 +19,8 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
-from followbot.node_runner import die_with_parent, init_rclpy, RosArgumentsError, StopSignals
+from followbot.node_runner import (die_with_parent, init_rclpy, ROS_ARGS_FLAG, RosArgumentsError,
+                                   split_ros_arguments, StopSignals)
 from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot_sim import messages
 from followbot_sim.course_library import COURSES
@@ -38,37 +39,6 @@ DEBUG_IMAGE_TOPIC = 'follower/debug_image'
 OVERVIEW_IMAGE_TOPIC = 'overview/image'
 CAMERA_PICTURE = 'camera_debug.png'
 OVERVIEW_PICTURE = 'overview.png'
-# rcl's markers around ROS arguments on a command line.
-ROS_ARGS_FLAG = '--ros-args'
-ROS_ARGS_END = '--'
-
-
-def split_ros_arguments(argv: list) -> tuple:
-    """
-    Separate ROS arguments from this program's own, as rcl does.
-
-    A ROS section starts at ``--ros-args`` and runs to ``--`` or the end; there may be several.
-
-    :param argv: arguments without the program name.
-    :return: ``(own, ros)``: this program's arguments, and the ROS sections with their markers,
-        each closed by ``--`` so that more arguments can follow them.
-    """
-    own, ros = [], []
-    in_ros_section = False
-    for argument in argv:
-        if argument == ROS_ARGS_FLAG:
-            in_ros_section = True
-            ros.append(argument)
-        elif in_ros_section and argument == ROS_ARGS_END:
-            in_ros_section = False
-            ros.append(argument)
-        elif in_ros_section:
-            ros.append(argument)
-        else:
-            own.append(argument)
-    if in_ros_section:
-        ros.append(ROS_ARGS_END)
-    return own, ros
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:

@@ -24,6 +24,9 @@ SPIN_POLL_S = 0.1
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # Linux prctl option: the signal the kernel sends a process when its parent dies.
 PR_SET_PDEATHSIG = 1
+# rcl's markers around ROS arguments on a command line.
+ROS_ARGS_FLAG = '--ros-args'
+ROS_ARGS_END = '--'
 
 
 class StopSignals:
@@ -67,6 +70,46 @@ def die_with_parent() -> None:
     """
     libc = ctypes.CDLL('libc.so.6', use_errno=True)
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def split_ros_arguments(argv: list) -> tuple:
+    """
+    Separate ROS arguments from this program's own, as rcl does.
+
+    A ROS section starts at ``--ros-args`` and runs to ``--`` or the end; there may be several.
+
+    :param argv: arguments without the program name.
+    :return: ``(own, ros)``: this program's arguments, and the ROS sections with their markers,
+        each closed by ``--`` so that more arguments can follow them.
+    """
+    own, ros = [], []
+    in_ros_section = False
+    for argument in argv:
+        if argument == ROS_ARGS_FLAG:
+            in_ros_section = True
+            ros.append(argument)
+        elif in_ros_section and argument == ROS_ARGS_END:
+            in_ros_section = False
+            ros.append(argument)
+        elif in_ros_section:
+            ros.append(argument)
+        else:
+            own.append(argument)
+    if in_ros_section:
+        ros.append(ROS_ARGS_END)
+    return own, ros
+
+
+def refuse_ros_arguments(parser, argv: list, reason: str) -> None:
+    """
+    Stop a tool that starts nodes of its own when it is given ROS arguments, saying why.
+
+    :param parser: the tool's ``argparse.ArgumentParser``; its ``error`` exits with code 2.
+    :param argv: the tool's arguments without the program name.
+    :param reason: why the tool takes none, and what to use instead.
+    """
+    if ROS_ARGS_FLAG in argv:
+        parser.error(f'takes no {ROS_ARGS_FLAG}: {reason}')
 
 
 class RosArgumentsError(ValueError):

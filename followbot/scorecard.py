@@ -32,7 +32,7 @@ import sys
 import time
 
 from followbot.follower_node import FollowerNode
-from followbot.node_runner import StopSignals
+from followbot.node_runner import refuse_ros_arguments, StopSignals
 from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
@@ -664,6 +664,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     output.add_argument('--no-json', action='store_true', help='write no JSON file')
     parser.add_argument('--node-log-level', choices=NODE_LOG_LEVELS, default='error',
                         help="the nodes' ROS log level (default: error)")
+    argv = sys.argv[1:] if argv is None else list(argv)
+    refuse_ros_arguments(parser, argv, 'it starts its own nodes; give follower parameters as a '
+                         'configuration (--params-file FILE) and simulator ones with --sim-param.')
     options = parser.parse_args(argv)
     try:
         options.scenarios = select_scenarios(options.scenarios)

@@ -52,3 +52,11 @@ def test_invalid_ros_arguments_are_refused_in_one_line(command, tmp_path):
     assert result.returncode == 2, result.stdout
     assert 'Invalid ROS arguments: ' in result.stdout
     assert 'Traceback' not in result.stdout
+
+
+@pytest.mark.parametrize('command', [scorecard, benchmark], ids=lambda module: module.__name__)
+def test_tools_that_start_their_own_nodes_refuse_ros_arguments(command, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        command.parse_arguments(['--ros-args', '-p', 'linear_speed_mps:=0.5'])
+    assert exit_info.value.code == 2
+    assert 'takes no --ros-args: it starts its own nodes' in capsys.readouterr().err
