@@ -526,7 +526,6 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'the process id, in 100..199)')
     parser.add_argument('--json', type=Path, default=None, metavar='FILE',
                         help='also write the figures to this JSON file')
-    argv = sys.argv[1:] if argv is None else list(argv)
     refuse_ros_arguments(parser, argv, 'it starts its own nodes with the settings it measures.')
     options = parser.parse_args(argv)
     options.sections = [name.strip() for name in options.sections.split(',') if name.strip()]

@@ -19,7 +19,7 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.image_conversion import image_to_array, to_bgr
-from followbot.node_runner import (die_with_parent, init_rclpy, ROS_ARGS_FLAG, RosArgumentsError,
+from followbot.node_runner import (die_with_parent, init_rclpy, ROS_ARGS_FLAG, RosStartError,
                                    split_ros_arguments, StopSignals)
 from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot_sim import messages
@@ -255,7 +255,7 @@ def main(argv=None) -> int:
         # The monitor follows the same remaps and namespace as the nodes it watches.
         init_rclpy(['followbot', *options.ros_arguments], context=context,
                    domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
-    except RosArgumentsError as error:
+    except RosStartError as error:
         print(f'[followbot] {error}', file=sys.stderr, flush=True)
         return 2
     monitor = MonitorNode(options.report_period, options.pictures_dir, context=context)

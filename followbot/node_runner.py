@@ -2,12 +2,15 @@
 
 import ctypes
 import signal
+import sys
 
 from followbot.transport import keep_large_buffers
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
 
 try:
     # rclpy's executor written in C++ (Jazzy 7.1): it wakes a callback ~0.2 ms sooner than the
@@ -24,6 +27,9 @@ SPIN_POLL_S = 0.1
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # Linux prctl option: the signal the kernel sends a process when its parent dies.
 PR_SET_PDEATHSIG = 1
+# The errors rclpy's C extension raises when rcl refuses arguments or initialisation.
+RCLInvalidROSArgsError = rclpy_implementation.RCLInvalidROSArgsError
+RCLError = rclpy_implementation.RCLError
 # rcl's markers around ROS arguments on a command line.
 ROS_ARGS_FLAG = '--ros-args'
 ROS_ARGS_END = '--'
@@ -100,36 +106,48 @@ def split_ros_arguments(argv: list) -> tuple:
     return own, ros
 
 
-def refuse_ros_arguments(parser, argv: list, reason: str) -> None:
+def refuse_ros_arguments(parser, argv, reason: str) -> None:
     """
     Stop a tool that starts nodes of its own when it is given ROS arguments, saying why.
 
     :param parser: the tool's ``argparse.ArgumentParser``; its ``error`` exits with code 2.
-    :param argv: the tool's arguments without the program name.
+    :param argv: the tool's arguments without the program name; ``sys.argv[1:]`` when None.
     :param reason: why the tool takes none, and what to use instead.
     """
-    if ROS_ARGS_FLAG in argv:
+    if ROS_ARGS_FLAG in (sys.argv[1:] if argv is None else argv):
         parser.error(f'takes no {ROS_ARGS_FLAG}: {reason}')
 
 
-class RosArgumentsError(ValueError):
-    """The command line's ROS arguments (after ``--ros-args``) are not valid."""
+class RosStartError(ValueError):
+    """rcl refused to start: a ROS argument it cannot parse, or a bad ROS environment variable."""
+
+
+def _rcl_reason(error: Exception, prefix: str) -> str:
+    # rcl's messages: '<prefix><what>. Error: <detail>, at <file:line>[, at <file:line>]'.
+    return str(error).removeprefix(prefix).split(', at ')[0]
 
 
 def init_rclpy(args=None, **init_options) -> None:
     """
-    Initialise rclpy, saying in one sentence what rcl refused on the command line.
+    Initialise rclpy, saying in one sentence what rcl refused, if anything.
 
     :param args: the command line, ``sys.argv`` when None; rcl reads its ROS sections.
     :param init_options: further keywords for :func:`rclpy.init`.
-    :raises RosArgumentsError: for a remap, parameter or parameters file rcl cannot parse.
+    :raises RosStartError: for a remap, parameter or parameters file rcl cannot parse
+        ('Invalid ROS arguments: ...'), or another reason rcl gives for not starting, such as a
+        ROS_DOMAIN_ID that is not a number ('ROS could not start: ...').
     """
     try:
+        # rcl's own argument parser first, so that a bad argument is named as one.
+        remove_ros_args(args)
+    except RCLInvalidROSArgsError as error:
+        reason = _rcl_reason(error, 'Failed to parse ROS arguments: ')
+        raise RosStartError(f'Invalid ROS arguments: {reason}') from None
+    try:
         rclpy.init(args=args, **init_options)
-    except RuntimeError as error:
-        # rcl's message: 'failed to initialize rcl: <what>. Error: <detail>, at <file:line>'.
-        reason = str(error).removeprefix('failed to initialize rcl: ').split(', at ')[0]
-        raise RosArgumentsError(f'Invalid ROS arguments: {reason}') from None
+    except RCLError as error:
+        reason = _rcl_reason(error, 'failed to initialize rcl: ')
+        raise RosStartError(f'ROS could not start: {reason}') from None
 
 
 def run_node(node_class, args=None, startup_errors=()) -> None:
@@ -151,7 +169,7 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
     keep_large_buffers()
     try:
         init_rclpy(args, signal_handler_options=SignalHandlerOptions.NO)
-    except RosArgumentsError as error:
+    except RosStartError as error:
         rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
         raise SystemExit(2)
     stop_signals = StopSignals().install()

@@ -664,7 +664,6 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     output.add_argument('--no-json', action='store_true', help='write no JSON file')
     parser.add_argument('--node-log-level', choices=NODE_LOG_LEVELS, default='error',
                         help="the nodes' ROS log level (default: error)")
-    argv = sys.argv[1:] if argv is None else list(argv)
     refuse_ros_arguments(parser, argv, 'it starts its own nodes; give follower parameters as a '
                          'configuration (--params-file FILE) and simulator ones with --sim-param.')
     options = parser.parse_args(argv)

@@ -5,6 +5,7 @@ import sys
 
 from conftest import child_environment
 from followbot import benchmark, latency_probe, launcher, scorecard
+from followbot.node_runner import split_ros_arguments
 import pytest
 
 
@@ -27,7 +28,7 @@ def test_help_prints_the_usage_and_exits_cleanly(command, capsys):
      ['--ros-args', '-p', 'a:=1', '--', '--ros-args', '--log-level', 'warn', '--']),
 ])
 def test_followbot_separates_ros_arguments_as_rcl_does(argv, own, ros):
-    assert launcher.split_ros_arguments(argv) == (own, ros)
+    assert split_ros_arguments(argv) == (own, ros)
 
 
 def test_followbot_passes_ros_arguments_on_and_keeps_its_options():
@@ -60,3 +61,13 @@ def test_tools_that_start_their_own_nodes_refuse_ros_arguments(command, capsys):
         command.parse_arguments(['--ros-args', '-p', 'linear_speed_mps:=0.5'])
     assert exit_info.value.code == 2
     assert 'takes no --ros-args: it starts its own nodes' in capsys.readouterr().err
+
+
+def test_a_bad_ros_environment_is_not_called_a_bad_argument(tmp_path):
+    result = subprocess.run(
+        [sys.executable, '-m', 'followbot.follower_node'], cwd=tmp_path, timeout=60,
+        env=dict(child_environment(), ROS_DOMAIN_ID='robot1'),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert result.returncode == 2, result.stdout
+    assert 'ROS could not start: ROS_DOMAIN_ID is not an integral number' in result.stdout
+    assert 'Invalid ROS arguments' not in result.stdout and 'Traceback' not in result.stdout
