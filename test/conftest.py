@@ -1,6 +1,7 @@
 """Shared test helpers: an isolated ROS 2 context per test, and a node-plus-client harness."""
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import time
@@ -16,6 +17,9 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_srvs.srv import SetBool, Trigger
 
+# The package's source directory, found from this file, not the working directory: pytest runs
+# from the checkout, colcon test from the package source directory.
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
 # Keep DDS traffic on this machine and apart from other test runs and other ROS users: each
 # pytest process gets its own domain, derived from its process id.
 FIRST_TEST_DOMAIN_ID = 120

@@ -17,7 +17,7 @@ import sys
 from typing import NamedTuple
 from xml.etree import ElementTree
 
-from conftest import (child_environment, kill_leftovers, run_domain_id, spin_until,
+from conftest import (child_environment, kill_leftovers, PACKAGE_DIR, run_domain_id, spin_until,
                       stop_process)
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.transport import FASTDDS_PROFILE_VARIABLE
@@ -28,7 +28,6 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 PACKAGE = 'followbot'
-CHECKOUT = Path(__file__).resolve().parent.parent
 # What ros2 run finds in lib/followbot: the console scripts of setup.py.
 EXECUTABLES = ('follower', 'sim', 'followbot', 'scorecard', 'benchmark')
 # Installed data: share/followbot/<folder> holds the checkout's files matching these patterns.
@@ -62,6 +61,15 @@ class Workspace(NamedTuple):
     environment: dict
     root: Path | None
 
+    @property
+    def share(self) -> Path:
+        """Return the package's share directory, where the data files are installed."""
+        return self.prefix / 'share' / PACKAGE
+
+    def executable(self, name: str) -> str:
+        """Return the path of an executable where ``ros2 run followbot <name>`` finds it."""
+        return str(self.prefix / 'lib' / PACKAGE / name)
+
 
 def colcon_executable() -> str:
     """Return the colcon beside this Python (a virtualenv's) or else the one on PATH."""
@@ -81,7 +89,7 @@ def run_colcon(root: Path, verb: str, *arguments: str, timeout_s: float):
 
 def workspace_paths(root: Path) -> list:
     """Return the arguments that place this checkout's build and install in ``root``."""
-    return ['--paths', str(CHECKOUT), '--build-base', str(root / 'build'),
+    return ['--paths', str(PACKAGE_DIR), '--build-base', str(root / 'build'),
             '--install-base', str(root / 'install')]
 
 
@@ -126,23 +134,17 @@ def run_python(workspace: Workspace, code: str, cwd: Path) -> list:
     return result.stdout.splitlines()
 
 
-def installed_executable(workspace: Workspace, name: str) -> str:
-    """Return the path of an executable where ``ros2 run followbot <name>`` finds it."""
-    return str(workspace.prefix / 'lib' / PACKAGE / name)
-
-
 def test_colcon_build_installs_what_ros2_run_looks_up(workspace, tmp_path):
-    prefix = workspace.prefix
-    share = prefix / 'share' / PACKAGE
+    prefix, share = workspace.prefix, workspace.share
     assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / PACKAGE).is_file()
-    assert (share / 'package.xml').read_bytes() == (CHECKOUT / 'package.xml').read_bytes()
+    assert (share / 'package.xml').read_bytes() == (PACKAGE_DIR / 'package.xml').read_bytes()
     for folder, patterns in INSTALLED_DATA.items():
         source = {path.name: path.read_bytes()
-                  for pattern in patterns for path in (CHECKOUT / folder).glob(pattern)}
+                  for pattern in patterns for path in (PACKAGE_DIR / folder).glob(pattern)}
         installed = {path.name: path.read_bytes() for path in (share / folder).iterdir()}
         assert source and installed == source, folder
     for name in EXECUTABLES:
-        path = Path(installed_executable(workspace, name))
+        path = Path(workspace.executable(name))
         assert path.is_file() and os.access(path, os.X_OK), path
 
     # From outside the checkout, the workspace's environment finds the package through the
@@ -165,23 +167,23 @@ def test_colcon_build_installs_what_ros2_run_looks_up(workspace, tmp_path):
     assert installed_modules or workspace.root is None, located
     # Installed modules read the installed data; those of a --symlink-install are the
     # checkout's own and read the checkout's.
-    assert scene == str((share if installed_modules else CHECKOUT) / 'models' / 'scene.xml')
+    assert scene == str((share if installed_modules else PACKAGE_DIR) / 'models' / 'scene.xml')
 
 
 def test_installed_nodes_follow_the_line_under_a_namespace_with_remaps(
         workspace, ros_context, tmp_path):
-    config = workspace.prefix / 'share' / PACKAGE / 'config'
+    config = workspace.share / 'config'
     ros_arguments = ['--ros-args', '-r', f'__ns:={NAMESPACE}', '-r', f'cmd_vel:={TELEOP_TOPIC}',
                      '--params-file', str(config / 'followbot.yaml')]
     # As the README has ros2 run users do: with Fast DDS's default segment, frames go by UDP
     # and some are lost, and in lockstep each lost frame holds the simulator for its timeout.
     environment = workspace_environment(workspace, config / 'fastdds_shm.xml')
     simulator = subprocess.Popen(
-        [installed_executable(workspace, 'sim'), *ros_arguments,
+        [workspace.executable('sim'), *ros_arguments,
          '-p', 'real_time_factor:=0.0', '-p', 'lockstep:=true'],
         env=environment, cwd=tmp_path)
     follower = subprocess.Popen(
-        [installed_executable(workspace, 'follower'), *ros_arguments,
+        [workspace.executable('follower'), *ros_arguments,
          '-p', 'use_sim_time:=true', '-p', f'linear_speed_mps:={OVERRIDDEN_SPEED_MPS}'],
         env=environment, cwd=tmp_path)
     client = Node('install_tree_client', context=ros_context)
@@ -215,10 +217,10 @@ def test_installed_nodes_follow_the_line_under_a_namespace_with_remaps(
 
 
 def test_installed_followbot_runs_both_nodes_under_a_namespace(workspace, tmp_path):
-    share = workspace.prefix / 'share' / PACKAGE
+    share = workspace.share
     domain_id = run_domain_id()
     launcher = subprocess.run(
-        [installed_executable(workspace, 'followbot'), '--domain-id', str(domain_id),
+        [workspace.executable('followbot'), '--domain-id', str(domain_id),
          '--duration', '5', '--real-time-factor', '0', '--lockstep',
          '--ros-args', '-r', f'__ns:={NAMESPACE}', '--params-file',
          str(share / 'config' / 'followbot.yaml')],

@@ -10,8 +10,8 @@ it uses limits so high that one frame reaches any command.
 from collections import namedtuple
 from dataclasses import fields
 import math
-from pathlib import Path
 
+from conftest import PACKAGE_DIR
 from followbot.controller import ControllerConfig
 from followbot.controller import estimate_path
 from followbot.controller import LineFollowingController
@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 import yaml
 
-BOOK_PARAMETERS_FILE = Path(__file__).resolve().parent.parent / 'config' / 'book_follower.yaml'
+BOOK_PARAMETERS_FILE = PACKAGE_DIR / 'config' / 'book_follower.yaml'
 IMAGE_WIDTH_PX = 640
 IMAGE_HEIGHT_PX = 480
 # The detector's default number of bands, and where they lie in a 640x480 image.

@@ -6,11 +6,10 @@ client plays the camera: frames 50 ms apart, and the Kinect's camera_info for th
 """
 
 import math
-from pathlib import Path
 import subprocess
 import sys
 
-from conftest import child_environment, NodeHarness
+from conftest import child_environment, NodeHarness, PACKAGE_DIR
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.follower_node import FOLLOWER_PARAMETERS, FollowerNode
 from followbot.image_conversion import array_to_image
@@ -25,7 +24,7 @@ from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import CameraInfo, Image
 import yaml
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / 'config'
+CONFIG_DIR = PACKAGE_DIR / 'config'
 PARAMETERS_FILE = CONFIG_DIR / 'followbot.yaml'
 BOOK_PARAMETERS_FILE = CONFIG_DIR / 'book_follower.yaml'
 YELLOW_BGR = (0, 246, 255)

@@ -6,13 +6,11 @@ import re
 import sys
 
 from catkin_pkg.package import parse_package
+from conftest import PACKAGE_DIR
 import pytest
 
 pytestmark = pytest.mark.linter
 
-# Found from this file, not the working directory: pytest runs from the checkout, colcon test
-# from the package source directory.
-PACKAGE_DIR = Path(__file__).resolve().parent.parent
 PACKAGE_XML = PACKAGE_DIR / 'package.xml'
 SETUP_PY = PACKAGE_DIR / 'setup.py'
 REQUIREMENTS_TXT = PACKAGE_DIR / 'requirements.txt'

@@ -6,13 +6,11 @@ import shutil
 import subprocess
 import sys
 
+from conftest import PACKAGE_DIR
 import pytest
 
 pytestmark = [pytest.mark.linter, pytest.mark.xmllint]
 
-# Found from this file, not the working directory: pytest runs from the checkout, colcon test
-# from the package source directory.
-PACKAGE_DIR = Path(__file__).resolve().parent.parent
 # Directories holding no package files: colcon's output when a workspace is built in the
 # checkout, and caches. Hidden directories (.git, .venv) and virtual environments are skipped too.
 SKIPPED_DIRS = {'build', 'install', 'log', '__pycache__'}
