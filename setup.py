@@ -29,10 +29,11 @@ setup(
     entry_points={
         'console_scripts': [
             'follower = followbot.follower_node:main',
+            'calibrate = followbot.calibrate:main',
             'sim = followbot_sim.sim_node:main',
-            'followbot = followbot.launcher:main',
-            'scorecard = followbot.scorecard:main',
-            'benchmark = followbot.benchmark:main',
+            'followbot = followbot_sim.launcher:main',
+            'scorecard = followbot_sim.scorecard:main',
+            'benchmark = followbot_sim.benchmark:main',
         ],
     },
 )

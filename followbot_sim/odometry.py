@@ -7,7 +7,7 @@ publishes the pose in the ``odom`` frame, which starts where the robot was at th
 
 import math
 
-from followbot_sim.frames import quaternion_from_yaw
+from followbot.frames import quaternion_from_yaw
 
 # Below this heading change in one update the arc formula's division by it loses precision; the
 # midpoint formula used instead differs from the arc by distance * O(dyaw^2): nothing.

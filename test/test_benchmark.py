@@ -5,10 +5,10 @@ import subprocess
 import sys
 
 from conftest import child_environment, run_domain_id
-from followbot.benchmark import (BookPipeline, IMAGE_HEIGHT_PX, IMAGE_WIDTH_PX,
-                                 parse_arguments, render_course_frames)
 from followbot.line_detector import DetectorConfig, LineDetector
 from followbot.transport import FASTDDS_PROFILE_VARIABLE
+from followbot_sim.benchmark import (BookPipeline, IMAGE_HEIGHT_PX, IMAGE_WIDTH_PX,
+                                     parse_arguments, render_course_frames)
 import numpy as np
 import pytest
 
@@ -72,7 +72,7 @@ def test_a_short_benchmark_measures_every_section(tmp_path):
     environment = child_environment()
     environment.pop(FASTDDS_PROFILE_VARIABLE, None)
     completed = subprocess.run(
-        [sys.executable, '-m', 'followbot.benchmark', '--frames', str(FRAME_COUNT),
+        [sys.executable, '-m', 'followbot_sim.benchmark', '--frames', str(FRAME_COUNT),
          '--repeats', '2', '--latency-frames', str(LATENCY_FRAMES), '--rates', '30',
          '--simulated-seconds', str(SIMULATED_S), '--domain-id', str(run_domain_id()),
          '--json', str(figures_file)],

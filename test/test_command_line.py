@@ -4,8 +4,8 @@ import subprocess
 import sys
 
 from conftest import child_environment
-from followbot import benchmark, latency_probe, launcher, scorecard
 from followbot.node_runner import split_ros_arguments
+from followbot_sim import benchmark, latency_probe, launcher, scorecard
 import pytest
 
 
@@ -42,7 +42,7 @@ def test_followbot_passes_ros_arguments_on_and_keeps_its_options():
 
 
 @pytest.mark.parametrize('command', [
-    [sys.executable, '-m', 'followbot.launcher', '--ros-args', '-r', 'no_rule'],
+    [sys.executable, '-m', 'followbot_sim.launcher', '--ros-args', '-r', 'no_rule'],
     [sys.executable, '-m', 'followbot.follower_node', '--ros-args', '--params-file',
      'missing.yaml'],
     [sys.executable, '-m', 'followbot_sim.sim_node', '--ros-args', '-p', 'no_value'],

@@ -1,22 +1,22 @@
-"""Tests of the frame names, rigid transforms and quaternion helpers of followbot_sim.frames."""
+"""Tests of the frame names, rigid transforms and quaternion helpers of followbot.frames."""
 
 import math
 
-from followbot_sim.frames import BASE_FOOTPRINT_FRAME
-from followbot_sim.frames import BASE_LINK_FRAME
-from followbot_sim.frames import CAMERA_LINK_FRAME
-from followbot_sim.frames import CAMERA_RGB_FRAME
-from followbot_sim.frames import CAMERA_RGB_OPTICAL_FRAME
-from followbot_sim.frames import chain_transforms
-from followbot_sim.frames import FrameTransform
-from followbot_sim.frames import matrix_from_quaternion
-from followbot_sim.frames import ODOM_FRAME
-from followbot_sim.frames import optical_rotation_xyzw
-from followbot_sim.frames import quaternion_from_matrix
-from followbot_sim.frames import quaternion_from_rpy
-from followbot_sim.frames import quaternion_from_yaw
-from followbot_sim.frames import WORLD_FRAME
-from followbot_sim.frames import yaw_from_quaternion
+from followbot.frames import BASE_FOOTPRINT_FRAME
+from followbot.frames import BASE_LINK_FRAME
+from followbot.frames import CAMERA_LINK_FRAME
+from followbot.frames import CAMERA_RGB_FRAME
+from followbot.frames import CAMERA_RGB_OPTICAL_FRAME
+from followbot.frames import chain_transforms
+from followbot.frames import FrameTransform
+from followbot.frames import matrix_from_quaternion
+from followbot.frames import ODOM_FRAME
+from followbot.frames import optical_rotation_xyzw
+from followbot.frames import quaternion_from_matrix
+from followbot.frames import quaternion_from_rpy
+from followbot.frames import quaternion_from_yaw
+from followbot.frames import WORLD_FRAME
+from followbot.frames import yaw_from_quaternion
 import numpy as np
 import pytest
 

@@ -8,9 +8,9 @@ LapTracker) judges the run.
 
 import cv2
 from followbot.controller import ControllerConfig
-from followbot.scorecard import END_LAP, run_scenario, Scenario
 from followbot_sim.course import FLOOR_GREY, LINE_RGB, make_course
 from followbot_sim.course_file import load_course
+from followbot_sim.scorecard import END_LAP, run_scenario, Scenario
 import numpy as np
 
 # The robot's centre must stay over the painted line, within half its 0.19 m width of the centre

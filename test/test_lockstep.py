@@ -4,8 +4,8 @@ import subprocess
 import sys
 
 from conftest import SimHarness, spin_until
+from followbot import messages
 from followbot.follower_node import FollowerNode
-from followbot_sim import messages
 from followbot_sim.sim_node import SimulatorNode
 import pytest
 from rclpy.executors import SingleThreadedExecutor

@@ -7,10 +7,10 @@ wheel joint angles with the simulator's ground-truth pose.
 
 import math
 
+from followbot.frames import quaternion_from_yaw
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import KOBUKI_WHEEL_RADIUS_M
 from followbot_sim.diff_drive import KOBUKI_WHEEL_SEPARATION_M
-from followbot_sim.frames import quaternion_from_yaw
 from followbot_sim.odometry import WheelOdometry
 from followbot_sim.world import FollowbotWorld
 import pytest

@@ -8,9 +8,9 @@ simulator and follower in worker processes for three seconds of simulated time p
 import json
 
 from conftest import run_domain_id
-from followbot.scorecard import (format_table, main, parse_sim_parameter, run_metrics,
-                                 SCENARIOS, select_configurations, select_scenarios,
-                                 StuckDetector)
+from followbot_sim.scorecard import (format_table, main, parse_sim_parameter, run_metrics,
+                                     SCENARIOS, select_configurations, select_scenarios,
+                                     StuckDetector)
 import pytest
 
 # A short end-to-end run: long enough for the robot to move and the camera to send frames.

@@ -9,9 +9,9 @@ robot's frames, the cmd_vel message type, and the pause, step and reset services
 import math
 
 from conftest import run_domain_id, SimHarness
+from followbot import frames
+from followbot import messages
 from followbot.image_conversion import image_to_array
-from followbot_sim import frames
-from followbot_sim import messages
 from followbot_sim import sim_node
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
@@ -180,7 +180,7 @@ def test_without_tf2_msgs_the_simulator_says_so_once(sim):
 
 def test_tf_carries_odometry_and_the_static_frames(sim):
     if sim_node.TFMessage is None:
-        pytest.skip('tf2_msgs is not importable here (not on PyPI); needs a ROS 2 install')
+        pytest.skip('tf2_msgs is not importable here (not on PyPI): make setup builds it')
     recorder = Recorder(sim, {'/tf': sim_node.TFMessage})
     # Static frames are sent once, latched for late joiners as tf2's static listener expects.
     latched = Recorder(sim, {'/tf_static': sim_node.TFMessage}, sim_node.TF_STATIC_QOS)

@@ -1,5 +1,5 @@
 """
-Build the simulator's ROS messages from plain values: stamps, camera info, point clouds, odometry.
+Build ROS messages from plain values: stamps, camera info, point clouds, odometry, transforms.
 
 Only message packages are imported here, not rclpy, so the builders are tested without a node.
 Builders that run every frame fill a message in place, so a publisher can reuse one message and
@@ -7,16 +7,14 @@ its buffers.
 """
 
 from builtin_interfaces.msg import Time
+from followbot.frames import FrameTransform, quaternion_from_yaw
 from followbot.image_conversion import fill_message_data
-from followbot_sim.frames import FrameTransform, quaternion_from_yaw
 from geometry_msgs.msg import Transform, TransformStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 from sensor_msgs.msg import CameraInfo, JointState, PointCloud2, PointField
 
 NANOSECONDS_PER_SECOND = 1_000_000_000
-# Name of the simulator's ground-truth score among the statuses on /diagnostics.
-SCORE_STATUS_NAME = 'followbot_sim: course score'
 # x, y and z as float32 one after the other: the layout PCL and RViz read directly.
 POINT_FIELDS = tuple(PointField(name=name, offset=4 * index, datatype=PointField.FLOAT32,
                                 count=1) for index, name in enumerate('xyz'))
@@ -49,20 +47,6 @@ def seconds(time_msg: Time) -> float:
     :return: seconds as a float.
     """
     return time_msg.sec + time_msg.nanosec / NANOSECONDS_PER_SECOND
-
-
-def score_values(diagnostics) -> dict | None:
-    """
-    Return the simulator's score in a ``diagnostic_msgs/DiagnosticArray``, if it holds it.
-
-    :param diagnostics: a message from ``/diagnostics``.
-    :return: the score's key -> text values (``time_s``, ``laps_completed``, ...), or None
-        when the message carries no score.
-    """
-    for status in diagnostics.status:
-        if status.name == SCORE_STATUS_NAME:
-            return {value.key: value.value for value in status.values}
-    return None
 
 
 def camera_info(intrinsics: tuple, size_px: tuple, frame_id: str) -> CameraInfo:

@@ -8,7 +8,7 @@ answer. Latency is a command's arrival time minus its stamp: the image through D
 follower's callback, and the command back through DDS. Frames no command answered are
 dropped frames.
 
-:mod:`followbot.benchmark` runs it as a process of its own; it writes its figures to a JSON
+:mod:`followbot_sim.benchmark` runs it as a process of its own; it writes its figures to a JSON
 file.
 """
 
@@ -19,11 +19,11 @@ from pathlib import Path
 import sys
 import time
 
+from followbot import frames as frame_names
+from followbot import messages
 from followbot.image_conversion import array_to_image
 from followbot.node_runner import NodeExecutor, StopSignals
 from followbot.transport import keep_large_buffers
-from followbot_sim import frames as frame_names
-from followbot_sim import messages
 from geometry_msgs.msg import TwistStamped
 import numpy as np
 import rclpy

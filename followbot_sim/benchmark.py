@@ -8,7 +8,7 @@ Three measurements, each printed as a table with the comparison side by side:
   frame converted to HSV and thresholded, rows outside the band zeroed, image moments; also
   without the copy), on the same frames rendered by the simulator along a course.
 * **Camera to cmd_vel** between two processes: a stand-in camera
-  (:mod:`followbot.latency_probe`) sends those frames to the real follower process at 20 and
+  (:mod:`followbot_sim.latency_probe`) sends those frames to the real follower process at 20 and
   30 Hz and times each command against the stamp of the image it answers; with the project's
   Fast DDS profile and with Fast DDS's defaults.
 * **Simulator speed** with the follower in the loop: the simulator and the follower as two
@@ -36,11 +36,10 @@ from followbot.image_conversion import array_to_image, image_to_array
 from followbot.line_detector import DetectorConfig, hsv_bounds, LineDetector
 from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSignals
 from followbot.transport import (environment_with_profile, environment_without_profile,
-                                 FASTDDS_PROFILE_NAME, fastdds_profile_path,
-                                 keep_large_buffers)
-from followbot_sim import messages
+                                 FASTDDS_PROFILE_NAME, fastdds_profile_path, keep_large_buffers)
 from followbot_sim.course_file import load_course
-from followbot_sim.sim_node import SIMULATOR_NODE
+from followbot_sim.score import score_values
+from followbot_sim.score import SIMULATOR_NODE
 from followbot_sim.world import FollowbotWorld
 import mujoco
 import numpy as np
@@ -328,7 +327,7 @@ def measure_latency(frames_file: Path, intrinsics: tuple, rate_hz: float, frame_
         '--ros-args', '-p', 'cmd_vel_stamped:=true', '--log-level', 'warn'],
         environment, log_folder / f'follower_{tag}.log')
     figures_file = log_folder / f'probe_{tag}.json'
-    probe = ChildProcess('followbot.latency_probe', [
+    probe = ChildProcess('followbot_sim.latency_probe', [
         '--frames-file', str(frames_file), '--intrinsics', *map(str, intrinsics),
         '--rate-hz', str(rate_hz), '--frames', str(frame_count),
         '--json-out', str(figures_file)], environment, log_folder / f'probe_{tag}.log')
@@ -393,7 +392,7 @@ class _ScoreListener(Node):
         self.pause_client = self.create_client(SetBool, f'/{SIMULATOR_NODE}/pause')
 
     def callback(self, msg: DiagnosticArray) -> None:
-        summary = messages.score_values(msg)
+        summary = score_values(msg)
         if summary is not None:
             self.summary = summary
             self.samples.append((time.monotonic(), float(summary['time_s'])))

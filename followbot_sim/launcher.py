@@ -18,12 +18,15 @@ import time
 
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
+from followbot import calibrate
+from followbot import messages
 from followbot.image_conversion import image_to_array, to_bgr
-from followbot.node_runner import (die_with_parent, init_rclpy, ROS_ARGS_FLAG, RosStartError,
-                                   split_ros_arguments, StopSignals)
+from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_namespace,
+                                   ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
+                                   StopSignals)
 from followbot.transport import environment_with_profile, keep_large_buffers
-from followbot_sim import messages
 from followbot_sim.course_library import COURSES
+from followbot_sim.score import score_values, SIMULATOR_NODE
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -35,10 +38,16 @@ from sensor_msgs.msg import Image
 STOP_GRACE_S = 5.0
 MONITOR_SPIN_S = 0.1
 REPORT_TOLERANCE_S = 1e-3
+CLOCK_TOPIC = '/clock'
+# How long the launcher looks for another simulator's clock before starting its own nodes: the
+# time DDS discovery takes to show a running participant on this machine.
+CLOCK_DISCOVERY_S = 2.0
 DEBUG_IMAGE_TOPIC = 'follower/debug_image'
 OVERVIEW_IMAGE_TOPIC = 'overview/image'
 CAMERA_PICTURE = 'camera_debug.png'
 OVERVIEW_PICTURE = 'overview.png'
+# `followbot calibrate ...` is the calibrate command (followbot.calibrate), not a simulation.
+CALIBRATE_COMMAND = 'calibrate'
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:
@@ -60,7 +69,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                '-r __ns:=/robot1 or -r cmd_vel:=cmd_vel_mux/input/teleop, -p name:=value, '
                '--params-file FILE, --log-level. A node ignores parameters it does not '
                'declare; prefix a remap with a node name (follower:, followbot_sim:) to '
-               'aim it at one node.')
+               "aim it at one node. `followbot calibrate --help`: the follower's "
+               'parameters for a new camera and tape, from one frame.')
     parser.add_argument('--duration', type=float, default=240.0, metavar='SECONDS',
                         help='simulated seconds to run; 0 runs until Ctrl-C (default: 240)')
     parser.add_argument('--real-time-factor', type=float, default=1.0, metavar='FACTOR',
@@ -136,15 +146,19 @@ class ChildProcess:
 class MonitorNode(Node):
     """Print the simulator's ground-truth progress and save pictures."""
 
-    def __init__(self, report_period_s: float, pictures_dir: Path | None, **kwargs):
+    def __init__(self, report_period_s: float, pictures_dir: Path | None, simulator: str,
+                 **kwargs):
         """
         Subscribe to the score and, when pictures are wanted, to the two images.
 
         :param report_period_s: simulated seconds between progress lines.
         :param pictures_dir: folder for the pictures, or None for none.
+        :param simulator: the fully qualified name of the simulator whose score is reported
+            (other robots' simulators may score on /diagnostics too).
         :param kwargs: forwarded to :class:`rclpy.node.Node`.
         """
         super().__init__('followbot_monitor', **kwargs)
+        self._simulator = simulator
         self._report_period_s = report_period_s
         self._next_report_s = 0.0
         self._laps_reported = 0
@@ -162,7 +176,7 @@ class MonitorNode(Node):
 
     def diagnostics_callback(self, msg: DiagnosticArray) -> None:
         """Keep the latest score and print a progress line when one is due."""
-        summary = messages.score_values(msg)
+        summary = score_values(msg, self._simulator)
         if summary is None:
             return
         self.summary = summary
@@ -224,17 +238,31 @@ def _node_command(module: str, ros_arguments: list, parameters: dict) -> list:
     return command
 
 
+def _clock_taken(monitor: Node, executor, clock_topic: str) -> bool:
+    """Tell whether some node publishes the clock topic, waiting for discovery a moment."""
+    deadline = time.monotonic() + CLOCK_DISCOVERY_S
+    while time.monotonic() < deadline:
+        if monitor.count_publishers(clock_topic) > 0:
+            return True
+        executor.spin_once(timeout_sec=MONITOR_SPIN_S)
+    return False
+
+
 def _ros_boolean(flag) -> str | None:
     return None if flag is None else str(bool(flag)).lower()
 
 
 def main(argv=None) -> int:
     """
-    Run the demo: simulator + follower, progress on the terminal.
+    Run the demo: simulator + follower, progress on the terminal; or ``followbot calibrate``.
 
     :param argv: command-line arguments without the program name.
-    :return: the exit code: 0 when both nodes ran and stopped cleanly.
+    :return: the exit code: 0 when both nodes ran and stopped cleanly (for ``calibrate``,
+        its own).
     """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == [CALIBRATE_COMMAND]:
+        return calibrate.main(argv[1:], prog=f'followbot {CALIBRATE_COMMAND}')
     options = parse_arguments(argv)
     # The Fast DDS profile for the nodes, which publish the images. This process only listens:
     # it keeps Fast DDS's small default segment (each process's segment takes its full size
@@ -258,7 +286,16 @@ def main(argv=None) -> int:
     except RosStartError as error:
         print(f'[followbot] {error}', file=sys.stderr, flush=True)
         return 2
-    monitor = MonitorNode(options.report_period, options.pictures_dir, context=context)
+    # Under a namespace, the robot's simulated clock is its own: two launchers on one domain
+    # would otherwise mix their /clock (the nodes' time source subscribes to /clock).
+    _, namespace = node_name_and_namespace(SIMULATOR_NODE, options.ros_arguments)
+    simulator_name = namespace.rstrip('/') + '/' + SIMULATOR_NODE
+    clock_topic = CLOCK_TOPIC if namespace == '/' else namespace + CLOCK_TOPIC
+    node_arguments = list(options.ros_arguments)
+    if clock_topic != CLOCK_TOPIC:
+        node_arguments += [ROS_ARGS_FLAG, '-r', f'{CLOCK_TOPIC}:={clock_topic}', ROS_ARGS_END]
+    monitor = MonitorNode(options.report_period, options.pictures_dir, simulator_name,
+                          context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(monitor)
     length = (f'{options.duration:g} s of simulated time' if options.duration
@@ -270,7 +307,7 @@ def main(argv=None) -> int:
     # Without --course the simulator's parameter (or a --params-file) decides; it says which.
     course = f'course {options.course}; ' if options.course else ''
     print(f'[followbot] ROS_DOMAIN_ID={domain_id}; {course}running {length}, {pace}; '
-          f'Fast DDS profile {profile}.', flush=True)
+          f'Fast DDS {profile}.', flush=True)
     # Options left out (None) leave the node's own value, or the --params-file's, in force.
     simulator_parameters = {
         'course': options.course,
@@ -280,10 +317,21 @@ def main(argv=None) -> int:
         'run_duration_s': float(options.duration),
         'score_period_s': 1.0,
     }
+    # A simulator already running under the same namespace on this domain would share this
+    # one's clock: ask the graph (discovery takes a moment) before starting anything.
+    if _clock_taken(monitor, executor, clock_topic):
+        print(f'[followbot] Cannot run: another simulator already publishes {clock_topic} on '
+              f'ROS_DOMAIN_ID={domain_id}, and two simulated clocks would mix: run this one '
+              'under its own namespace (--ros-args -r __ns:=/robot2) or on another domain '
+              '(--domain-id N).', file=sys.stderr, flush=True)
+        executor.shutdown()
+        monitor.destroy_node()
+        rclpy.try_shutdown(context=context)
+        return 2
     simulator = ChildProcess('sim', _node_command(
-        'followbot_sim.sim_node', options.ros_arguments, simulator_parameters), environment)
+        'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     follower = ChildProcess('follower', _node_command(
-        'followbot.follower_node', options.ros_arguments, {'use_sim_time': 'true'}), environment)
+        'followbot.follower_node', node_arguments, {'use_sim_time': 'true'}), environment)
     children = (simulator, follower)
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
