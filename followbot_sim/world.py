@@ -16,14 +16,13 @@ import os
 from pathlib import Path
 import time
 
+from followbot.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPTH_FRAME,
+                              CAMERA_DEPTH_OPTICAL_FRAME, CAMERA_LINK_FRAME, CAMERA_RGB_FRAME,
+                              CAMERA_RGB_OPTICAL_FRAME, FrameTransform, optical_rotation_xyzw,
+                              quaternion_from_matrix, yaw_from_quaternion)
 from followbot.package_files import share_file
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
-from followbot_sim.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPTH_FRAME,
-                                  CAMERA_DEPTH_OPTICAL_FRAME, CAMERA_LINK_FRAME, CAMERA_RGB_FRAME,
-                                  CAMERA_RGB_OPTICAL_FRAME, FrameTransform,
-                                  optical_rotation_xyzw, quaternion_from_matrix,
-                                  yaw_from_quaternion)
 import mujoco
 import numpy as np
 

@@ -10,6 +10,17 @@ world's sensor frames and the camera intrinsics must land where the rendered ima
 import math
 import shutil
 
+from followbot.frames import BASE_FOOTPRINT_FRAME
+from followbot.frames import BASE_LINK_FRAME
+from followbot.frames import CAMERA_DEPTH_FRAME
+from followbot.frames import CAMERA_DEPTH_OPTICAL_FRAME
+from followbot.frames import CAMERA_LINK_FRAME
+from followbot.frames import CAMERA_RGB_FRAME
+from followbot.frames import CAMERA_RGB_OPTICAL_FRAME
+from followbot.frames import chain_transforms
+from followbot.frames import FrameTransform
+from followbot.frames import quaternion_from_rpy
+from followbot.frames import WORLD_FRAME
 from followbot_sim.course import Course
 from followbot_sim.course import COURSES
 from followbot_sim.course import FLOOR_GREY
@@ -17,17 +28,6 @@ from followbot_sim.course import LINE_RGB
 from followbot_sim.course import make_course
 from followbot_sim.depth import project_points_px
 from followbot_sim.diff_drive import KOBUKI_MAX_LINEAR_SPEED_MPS
-from followbot_sim.frames import BASE_FOOTPRINT_FRAME
-from followbot_sim.frames import BASE_LINK_FRAME
-from followbot_sim.frames import CAMERA_DEPTH_FRAME
-from followbot_sim.frames import CAMERA_DEPTH_OPTICAL_FRAME
-from followbot_sim.frames import CAMERA_LINK_FRAME
-from followbot_sim.frames import CAMERA_RGB_FRAME
-from followbot_sim.frames import CAMERA_RGB_OPTICAL_FRAME
-from followbot_sim.frames import chain_transforms
-from followbot_sim.frames import FrameTransform
-from followbot_sim.frames import quaternion_from_rpy
-from followbot_sim.frames import WORLD_FRAME
 from followbot_sim.world import CAMERA_NAME
 from followbot_sim.world import DEFAULT_CAMERA_PITCH_DEG
 from followbot_sim.world import DEFAULT_HORIZONTAL_FOV_DEG
