@@ -12,39 +12,59 @@ annotated.
 
 import dataclasses
 import math
+import time
+import traceback
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from followbot.controller import (ControllerConfig, LineFollowingController,
-                                  LOST_LINE_BEHAVIOURS, STATE_TRACKING, STEERING_LAWS,
-                                  VelocityCommand)
-from followbot.ground_projection import CameraGeometry
-from followbot.image_conversion import (array_to_image, image_to_array, ImageConversionError,
-                                        to_bgr)
+from followbot import frames
+from followbot import messages
+from followbot.compressed_image import compressed_to_array
+from followbot.controller import (ControllerConfig, LineFollowingController, LOST_LINE_BEHAVIOURS,
+                                  STATE_TRACKING, STEERING_LAWS, VelocityCommand)
+from followbot.frame_clock import FrameClock
+from followbot.ground_projection import CameraGeometry, CameraInfoError, CameraIntrinsics
+from followbot.image_conversion import array_to_image, image_to_array, ImageConversionError, to_bgr
+from followbot.line_colour import LINE_COLOURS
 from followbot.line_detector import Detection, DetectorConfig, draw_debug, LineDetector
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec, specs_for_config
-from followbot_sim import frames
-from followbot_sim import messages
+from followbot.problem_reports import ProblemReports
 from geometry_msgs.msg import Twist, TwistStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
 # Sensor-data QoS with depth 1: a controller must never work through a backlog of stale frames.
 IMAGE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.BEST_EFFORT)
 # How long the final zero Twist may wait to be acknowledged by the subscribers at shutdown.
 STOP_ACK_TIMEOUT = Duration(seconds=0.5)
-IMAGE_WATCH_PERIOD_S = 0.1
+NODE_NAME = 'follower'
 STATUS_NAME = 'followbot: follower'
+IMAGE_TOPIC = 'camera/rgb/image_raw'
+RAW_TRANSPORT = 'raw'
+COMPRESSED_TRANSPORT = 'compressed'
+# image_transport's compressed plugin publishes on the base topic plus this.
+COMPRESSED_SUFFIX = '/compressed'
+# The causes of the problems the follower reports, each at most once per report period.
+CAUSE_IMAGE = 'image'
+CAUSE_CAMERA_INFO = 'camera_info'
+CAUSE_WAITING_FOR_CAMERA_INFO = 'waiting for camera_info'
+CAUSE_STAMP = 'stamp'
+CAUSE_INTERNAL = 'internal'
 
 # Range and meaning (or, for a text, just the meaning) of each detector and controller
 # parameter. Defaults come from DetectorConfig and ControllerConfig, so the two can never
 # disagree.
 DETECTOR_PARAMETERS = {
+    'line_colour': ('Colour of the line: ' + ', '.join(LINE_COLOURS) + ' (the presets judge '
+                    'the line against its floor, whatever the white balance and exposure; '
+                    "'custom' takes the line's colour from the hue, saturation and value "
+                    'bounds below). A mono8 camera shows only white or black tape.'),
     'hue_min': (0, 179, 'Lowest hue of the line, OpenCV units (0-179, 2 degrees each).'),
     'hue_max': (0, 179, 'Highest hue of the line, OpenCV units (0-179, 2 degrees each).'),
     'saturation_min': (0, 255, 'Lowest saturation of the line (0-255).'),
@@ -59,9 +79,15 @@ DETECTOR_PARAMETERS = {
                               'the image height.'),
     'band_height_px': (1, 4096, 'Height of each band of rows.'),
     'min_area_px': (1, 1_000_000, 'Fewest pixels of one stripe in a band that count as '
-                    'the line; smaller specks are noise.'),
-    'max_stripe_jump_fraction': (0.001, 1.0, 'Farthest a stripe may lie from where a band '
-                                 'expects the line, as a fraction of the image width.'),
+                    'the line, whatever the camera geometry (which asks for more where the '
+                    'line looks wide); smaller specks are noise.'),
+    'line_width_m': (0.005, 2.0, 'Width of the line on the floor: with the camera geometry '
+                     'it tells how wide the line must look in each band.'),
+    'min_confidence': (0.0, 1.0, 'A detection less confident than this (0-1) reports no line: '
+                       'the robot coasts through line_memory_s, then stops or searches.'),
+    'max_stripe_jump_m': (0.005, 5.0, "Farthest, on the floor, a band's stripe may lie "
+                          'sideways from where the line leads, or from where the band saw '
+                          'it in the previous frame.'),
 }
 CONTROLLER_PARAMETERS = {
     'steering_law': ('How to steer: ' + ' or '.join(STEERING_LAWS) + " ('path' steers along "
@@ -77,8 +103,10 @@ CONTROLLER_PARAMETERS = {
                      'steers for.'),
     'bearing_gain_radps': (0.0, 50.0, 'Path law: yaw rate per radian of bearing to that '
                            'point when this turns faster than the arc to it (sharp corners).'),
-    'confidence_for_full_speed': (0.001, 1.0, 'Path law: fraction of the bands that must see '
-                                  'the line for full speed; fewer slow the robot down.'),
+    'confidence_for_full_speed': (0.001, 1.0, 'Path law: detection confidence (0-1: the '
+                                  'share of the bands that see a well-fitting line) needed '
+                                  'for full speed; less slows the robot down.'),
+
     'max_lateral_acceleration_mps2': (0.001, 100.0, 'Path law: bends are driven no faster '
                                       'than this sideways acceleration allows.'),
     'max_linear_acceleration_mps2': (0.001, 100.0, 'Largest change of forward speed per '
@@ -111,9 +139,14 @@ FOLLOWER_PARAMETERS = {
     **specs_for_config(ControllerConfig(), CONTROLLER_PARAMETERS),
     **CAMERA_PARAMETERS,
     'image_timeout_s': ParameterSpec(
-        0.5, 'Stop when no camera image came for this long (node clock, so simulated time '
-        'under use_sim_time).', 0.05, 10.0),
+        0.5, 'Stop when no camera image came for this long, in wall-clock time whatever the '
+        'time source (a dead simulator stops /clock too).', 0.05, 10.0),
     # Read-only: a publisher's message type cannot change while the node runs.
+    'image_transport': ParameterSpec(
+        'raw', "How camera images come: 'raw' (sensor_msgs/Image on camera/rgb/image_raw) "
+        "or 'compressed' (sensor_msgs/CompressedImage, JPEG or PNG, on the same topic plus "
+        '/compressed, as image_transport names it: the usual way images cross Wi-Fi).',
+        read_only=True),
     'cmd_vel_stamped': ParameterSpec(
         False, 'Publish cmd_vel as geometry_msgs/TwistStamped, stamped with the camera image '
         "each command answers (as Jazzy's Nav2 and ros2_control take it), instead of Twist.",
@@ -152,6 +185,8 @@ class FollowerSettings:
 class FollowerNode(Node):
     """Follow a yellow line seen by the camera by publishing velocity commands."""
 
+    NODE_NAME = NODE_NAME
+
     def __init__(self, **kwargs):
         """
         Declare the parameters, build the detector and the controller, wire the topics.
@@ -159,7 +194,7 @@ class FollowerNode(Node):
         :param kwargs: forwarded to :class:`rclpy.node.Node` (``context``,
             ``parameter_overrides``, ...).
         """
-        super().__init__('follower', **kwargs)
+        super().__init__(self.NODE_NAME, **kwargs)
         parameters = declare_parameters(self, FOLLOWER_PARAMETERS)
         self._settings = FollowerSettings.from_parameters(parameters)
         self._cmd_vel_stamped = parameters['cmd_vel_stamped']
@@ -169,7 +204,7 @@ class FollowerNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        self._camera_matrix = None
+        self._camera_intrinsics = None
         self._camera_geometry = None
         self._cmd_vel_publisher = self.create_publisher(
             TwistStamped if self._cmd_vel_stamped else Twist, 'cmd_vel', 10)
@@ -180,13 +215,18 @@ class FollowerNode(Node):
         # executor then takes the intrinsics before the image that needs them.
         self._camera_info_subscription = self.create_subscription(
             CameraInfo, 'camera/rgb/camera_info', self.camera_info_callback, IMAGE_QOS)
-        self._image_subscription = self.create_subscription(
-            Image, 'camera/rgb/image_raw', self.image_callback, IMAGE_QOS)
-        self._image_watch_timer = self.create_timer(IMAGE_WATCH_PERIOD_S,
-                                                    self.image_watch_callback)
-        self._last_image_time = self.get_clock().now()
-        self._waiting_for_images = True
-        self._reported_errors = set()
+        self._image_subscription = self._subscribe_to_images(parameters['image_transport'])
+        # The camera watchdog runs on wall time: under use_sim_time a dead simulator stops
+        # /clock as well as the images, and a timer on the node's clock would never fire.
+        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
+        self._image_watchdog = self.create_timer(
+            self._settings.image_timeout_s, self.image_watchdog_callback,
+            clock=self._steady_clock)
+        self._image_watchdog.cancel()
+        self._stopped_for_silence = False
+        self._reports = ProblemReports()
+        self._frame_clock = FrameClock()
+        self._camera_info = None
         self._line_was_found = None
         self._frames = 0
         self._frames_line_lost = 0
@@ -222,76 +262,160 @@ class FollowerNode(Node):
         if settings.detector != self._settings.detector:
             self._detector = LineDetector(self._settings.detector)
         self._controller.config = self._settings.controller
-        if self._camera_matrix is not None:
-            self._camera_geometry = self._make_camera_geometry(self._camera_matrix)
+        if self._camera_intrinsics is not None:
+            self._camera_geometry = self._make_camera_geometry(self._camera_intrinsics)
+        if settings.image_timeout_s != self._settings.image_timeout_s:
+            self._restart_image_watchdog()
         changes = ', '.join(f'{parameter.name}={parameter.value!r}' for parameter in parameters)
         self.get_logger().info(f'Parameters changed: {changes}.')
 
-    def _make_camera_geometry(self, camera_matrix) -> CameraGeometry:
+    def _make_camera_geometry(self, intrinsics: CameraIntrinsics) -> CameraGeometry:
         settings = self._settings
-        return CameraGeometry.from_camera_matrix(
-            camera_matrix, settings.camera_height_m, math.radians(settings.camera_pitch_deg),
+        return CameraGeometry.from_intrinsics(
+            intrinsics, settings.camera_height_m, math.radians(settings.camera_pitch_deg),
             settings.camera_forward_m)
+
+    def _restart_image_watchdog(self) -> None:
+        active = not self._image_watchdog.is_canceled()
+        self.destroy_timer(self._image_watchdog)
+        self._image_watchdog = self.create_timer(
+            self._settings.image_timeout_s, self.image_watchdog_callback,
+            clock=self._steady_clock)
+        if not active:
+            self._image_watchdog.cancel()
 
     def camera_info_callback(self, msg: CameraInfo) -> None:
         """Take the camera's intrinsics, which put the line's image points on the floor."""
-        camera_matrix = tuple(msg.k)
-        if camera_matrix == self._camera_matrix:
+        try:
+            self._take_camera_info(msg)
+        except Exception as error:  # noqa: B902 - no message may bring the follower down.
+            self._internal_error(error)
+
+    def _take_camera_info(self, msg: CameraInfo) -> None:
+        # The same description comes with every frame: only a new one is read.
+        description = (tuple(msg.k), tuple(msg.d), msg.distortion_model, msg.width,
+                       msg.height, msg.binning_x, msg.binning_y, msg.roi.x_offset,
+                       msg.roi.y_offset, msg.roi.width, msg.roi.height)
+        if description == self._camera_info:
             return
         try:
-            self._camera_geometry = self._make_camera_geometry(camera_matrix)
-        except ValueError as error:
-            self._report_once(f'Cannot use camera_info: {error}')
+            intrinsics = CameraIntrinsics.from_camera_info(msg)
+        except CameraInfoError as error:
+            # Not used, and what was known is forgotten: a camera whose description turned
+            # bad may have changed (a new resolution), and old intrinsics would mislead.
+            self._camera_info = self._camera_intrinsics = self._camera_geometry = None
+            self._report_error(CAUSE_CAMERA_INFO, f'Cannot use camera_info: {error}')
             return
-        self._camera_matrix = camera_matrix
+        self._camera_info = description
+        self._camera_intrinsics = intrinsics
+        self._camera_geometry = self._make_camera_geometry(intrinsics)
+
+    def _subscribe_to_images(self, transport: str):
+        """Subscribe to the camera's raw or compressed images, named as image_transport does."""
+        if transport == RAW_TRANSPORT:
+            return self.create_subscription(Image, IMAGE_TOPIC, self.image_callback, IMAGE_QOS)
+        if transport != COMPRESSED_TRANSPORT:
+            raise ValueError(f"image_transport must be '{RAW_TRANSPORT}' or "
+                             f"'{COMPRESSED_TRANSPORT}', got {transport!r}.")
+        # The base topic with its remaps and namespace applied, then image_transport's suffix:
+        # remapping camera/rgb/image_raw moves the compressed topic with it.
+        topic = self.resolve_topic_name(IMAGE_TOPIC) + COMPRESSED_SUFFIX
+        return self.create_subscription(CompressedImage, topic,
+                                        self.compressed_image_callback, IMAGE_QOS)
 
     def image_callback(self, msg: Image) -> None:
         """Detect the line in a camera frame and publish the command it calls for."""
-        self._last_image_time = self.get_clock().now()
-        self._waiting_for_images = False
-        stamp_s = messages.seconds(msg.header.stamp)
+        self._take_frame(msg, _raw_pixels)
+
+    def compressed_image_callback(self, msg: CompressedImage) -> None:
+        """Decode a compressed camera frame, then follow as with a raw one."""
+        self._take_frame(msg, compressed_to_array)
+
+    def _take_frame(self, msg, decode) -> None:
+        # The camera is alive, whatever its frames hold.
+        self._image_watchdog.reset()
+        self._stopped_for_silence = False
         try:
-            image = image_to_array(msg)
+            self._follow(msg, decode)
+        except Exception as error:  # noqa: B902 - no message may bring the follower down.
+            self._internal_error(error)
+            self._stop_blind(msg.header.stamp)
+
+    def _follow(self, msg, decode) -> None:
+        time_s, stamped = self._frame_clock.frame_time(
+            messages.seconds(msg.header.stamp), time.monotonic())
+        if not stamped:
+            self._report_warning(
+                CAUSE_STAMP, 'Camera images carry a zero or repeated header.stamp: timing '
+                'them by their arrival instead. Stamp them in the camera driver.')
+        else:
+            self._reports.resolved(CAUSE_STAMP)
+        try:
+            image, encoding = decode(msg)
+            geometry = self._geometry_for(image.shape[1], image.shape[0])
+            detection = self._detector.detect(image, encoding, geometry)
         except ImageConversionError as error:
-            self._report_once(f'Cannot use camera image: {error}')
-            # Nothing seen: the controller stops or searches, it never drives on blind.
-            self._publish(self._controller.update(Detection.nothing_seen(), stamp_s),
-                          msg.header.stamp)
+            self._report_error(CAUSE_IMAGE, f'Cannot use camera image: {error}')
+            # A frame that cannot be read never drives the robot.
+            self._stop_blind(msg.header.stamp)
             return
-        detection = self._detector.detect(image, msg.encoding)
+        self._reports.resolved(CAUSE_IMAGE)
         # Only the path law steers by floor points; the proportional law needs no projection.
         floor_xy_m = None
         if self._settings.controller.steering_law == 'path':
-            if self._camera_geometry is None:
-                self._report_once(
+            if geometry is None:
+                self._report_info(
+                    CAUSE_WAITING_FOR_CAMERA_INFO,
                     f'Waiting for {self._camera_info_subscription.topic_name}: the path law '
-                    'needs the camera intrinsics to put the line on the floor.', error=False)
+                    'needs the camera intrinsics to put the line on the floor.')
                 self._publish(LineFollowingController.stop_command(), msg.header.stamp)
                 return
-            floor_xy_m = self._floor_points(detection)
-        command = self._controller.update(detection, stamp_s, floor_xy_m)
+            floor_xy_m = self._floor_points(detection, geometry)
+        command = self._controller.update(detection, time_s, floor_xy_m)
         self._publish(command, msg.header.stamp)
         self._count_frame(detection.found)
-        self._publish_views(msg, image, detection, command)
+        self._publish_views(msg.header, image, encoding, detection, command)
 
-    def _floor_points(self, detection: Detection):
+    def _geometry_for(self, width_px: int, height_px: int) -> CameraGeometry | None:
+        """Return the camera geometry if the last camera_info describes an image of a size."""
+        if self._camera_intrinsics is None:
+            return None
+        try:
+            self._camera_intrinsics.check_image_size(width_px, height_px)
+        except CameraInfoError as error:
+            self._report_error(CAUSE_CAMERA_INFO, f'Cannot use camera_info: {error}')
+            return None
+        self._reports.resolved(CAUSE_CAMERA_INFO)
+        return self._camera_geometry
+
+    def _stop_blind(self, stamp=None) -> None:
+        """Stop the robot and forget the line: nothing known may drive it."""
+        self._controller.reset()
+        self._publish(LineFollowingController.stop_command(), stamp)
+
+    def _internal_error(self, error: Exception) -> None:
+        self._report_error(
+            CAUSE_INTERNAL, 'Internal error, stopping the robot: '
+            + ''.join(traceback.format_exception(error)).rstrip())
+
+    def _floor_points(self, detection: Detection, geometry: CameraGeometry):
         seen = detection.seen_bands
-        x_m, y_m = self._camera_geometry.pixels_to_floor(
+        x_m, y_m = geometry.pixels_to_floor(
             [band.centroid_x_px for band in seen], [band.centroid_y_px for band in seen])
         points = np.stack((x_m, y_m), axis=1)
         return points[np.isfinite(points).all(axis=1)]
 
-    def _publish_views(self, msg: Image, image, detection: Detection,
+    def _publish_views(self, header, image, encoding: str, detection: Detection,
                        command: VelocityCommand) -> None:
         # Each view costs time per frame: made only while someone subscribes.
         if self._status_publisher.get_subscription_count() > 0:
-            self._publish_status(msg.header, detection, command)
+            self._publish_status(header, detection, command)
         if self._mask_publisher.get_subscription_count() > 0:
-            self._publish_mask(msg.header, detection)
+            self._publish_mask(header, detection)
         if self._debug_image_publisher.get_subscription_count() > 0:
-            overlay = draw_debug(to_bgr(image, msg.encoding), detection)
+            overlay = draw_debug(to_bgr(image, encoding), detection)
             debug_msg = array_to_image(overlay, 'bgr8')
-            debug_msg.header = msg.header
+            debug_msg.header = header
             self._debug_image_publisher.publish(debug_msg)
 
     def _publish_status(self, header, detection: Detection, command: VelocityCommand) -> None:
@@ -326,25 +450,34 @@ class FollowerNode(Node):
         mask_msg.header = header
         self._mask_publisher.publish(mask_msg)
 
-    def image_watch_callback(self) -> None:
-        """Stop the robot when the camera has gone quiet."""
-        if self._waiting_for_images:
+    def image_watchdog_callback(self) -> None:
+        """Stop the robot when the camera has gone quiet for image_timeout_s of wall time."""
+        self._image_watchdog.cancel()
+        if self._stopped_for_silence:
             return
-        silence = self.get_clock().now() - self._last_image_time
-        if silence.nanoseconds * 1e-9 > self._settings.image_timeout_s:
-            self._waiting_for_images = True
-            self.get_logger().warn(
-                f'No camera image for {self._settings.image_timeout_s:g} s: stopping until '
-                'images come back.')
-            self._controller.reset()
-            self._publish(LineFollowingController.stop_command())
+        self._stopped_for_silence = True
+        self.get_logger().warn(
+            f'No camera image for {self._settings.image_timeout_s:g} s: stopping until '
+            'images come back.')
+        self._controller.reset()
+        self._frame_clock.reset()
+        self._publish(LineFollowingController.stop_command())
 
-    def _report_once(self, text: str, error: bool = True) -> None:
-        # Once per distinct problem: a stream of bad frames must not flood the log.
-        if text in self._reported_errors:
-            return
-        self._reported_errors.add(text)
-        (self.get_logger().error if error else self.get_logger().info)(text)
+    # One method per severity: rclpy refuses to log at two severities from one line of code.
+    def _report_error(self, cause: str, text: str) -> None:
+        suffix = self._reports.occurred(cause, time.monotonic())
+        if suffix is not None:
+            self.get_logger().error(text + suffix)
+
+    def _report_warning(self, cause: str, text: str) -> None:
+        suffix = self._reports.occurred(cause, time.monotonic())
+        if suffix is not None:
+            self.get_logger().warn(text + suffix)
+
+    def _report_info(self, cause: str, text: str) -> None:
+        suffix = self._reports.occurred(cause, time.monotonic())
+        if suffix is not None:
+            self.get_logger().info(text + suffix)
 
     def _count_frame(self, found: bool) -> None:
         self._frames += 1
@@ -380,6 +513,11 @@ class FollowerNode(Node):
             self._publish(LineFollowingController.stop_command())
             self._cmd_vel_publisher.wait_for_all_acked(STOP_ACK_TIMEOUT)
         return super().destroy_node()
+
+
+def _raw_pixels(msg: Image) -> tuple:
+    """Return a raw Image's pixels and their encoding."""
+    return image_to_array(msg), msg.encoding
 
 
 def main(args=None):

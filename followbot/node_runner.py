@@ -4,7 +4,7 @@ import ctypes
 import signal
 import sys
 
-from followbot.transport import keep_large_buffers
+from followbot.transport import keep_large_buffers, use_package_profile
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -33,6 +33,10 @@ RCLError = rclpy_implementation.RCLError
 # rcl's markers around ROS arguments on a command line.
 ROS_ARGS_FLAG = '--ros-args'
 ROS_ARGS_END = '--'
+REMAP_FLAGS = ('-r', '--remap')
+# The remaps that rename a node and move it to another namespace (rcl's special names).
+NODE_NAME_REMAP = '__node'
+NAMESPACE_REMAP = '__ns'
 
 
 class StopSignals:
@@ -118,6 +122,45 @@ def refuse_ros_arguments(parser, argv, reason: str) -> None:
         parser.error(f'takes no {ROS_ARGS_FLAG}: {reason}')
 
 
+def node_name_and_namespace(node_name: str, argv) -> tuple:
+    """
+    Return the name and namespace a node gets from the command line's renames.
+
+    :param node_name: the node's own name.
+    :param argv: the command line (ROS sections are read; ``sys.argv`` when None).
+    :return: (name, namespace): the namespace absolute, ``'/'`` for none.
+    """
+    _, ros = split_ros_arguments(list(sys.argv[1:] if argv is None else argv))
+    name, namespace = node_name, '/'
+    for flag, remap in zip(ros, ros[1:]):
+        if flag not in REMAP_FLAGS or ':=' not in remap:
+            continue
+        target, value = remap.split(':=', 1)
+        aimed_at, _, special = target.rpartition(':')
+        if aimed_at and aimed_at != node_name:
+            continue
+        if special == NODE_NAME_REMAP:
+            name = value
+        elif special == NAMESPACE_REMAP:
+            namespace = '/' + value.strip('/')
+    return name, namespace
+
+
+def logger_name(node_name: str, argv) -> str:
+    """
+    Return the name a node will log under, with the command line's renames applied.
+
+    rcl names a node's logger after its namespace and name (``robot1.follower`` for
+    ``/robot1/follower``). A node that fails to start must say so under that name too.
+
+    :param node_name: the node's own name.
+    :param argv: the command line (ROS sections are read; ``sys.argv`` when None).
+    :return: the logger name.
+    """
+    name, namespace = node_name_and_namespace(node_name, argv)
+    return '.'.join(part for part in (*namespace.strip('/').split('/'), name) if part)
+
+
 class RosStartError(ValueError):
     """rcl refused to start: a ROS argument it cannot parse, or a bad ROS environment variable."""
 
@@ -167,10 +210,14 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
     """
     # Before rclpy allocates anything: image buffers are then reused, not re-mapped per frame.
     keep_large_buffers()
+    # Before rclpy creates the participant, which reads the Fast DDS configuration.
+    transport_line = use_package_profile()
+    startup_logger = rclpy.logging.get_logger(
+        logger_name(getattr(node_class, 'NODE_NAME', node_class.__name__), args))
     try:
         init_rclpy(args, signal_handler_options=SignalHandlerOptions.NO)
     except RosStartError as error:
-        rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
+        startup_logger.fatal(f'Cannot start: {error}')
         raise SystemExit(2)
     stop_signals = StopSignals().install()
     node = None
@@ -185,8 +232,10 @@ def run_node(node_class, args=None, startup_errors=()) -> None:
         except (ValueError, ParameterException, *startup_errors) as error:
             # A parameter of the wrong type, out of its range, or naming nothing known, or a
             # machine that lacks something: say which, not a traceback.
-            rclpy.logging.get_logger(node_class.__name__).fatal(f'Cannot start: {error}')
+            startup_logger.fatal(f'Cannot start: {error}')
             raise SystemExit(2)
+        if transport_line is not None:
+            node.get_logger().info(transport_line)
         executor.add_node(node)
         while (rclpy.ok() and not stop_signals.is_set()
                and not getattr(node, 'finished', False)):

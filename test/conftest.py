@@ -7,6 +7,7 @@ import subprocess
 import time
 
 from geometry_msgs.msg import Twist
+from hypothesis import HealthCheck, settings
 import pytest
 from rcl_interfaces.msg import Log
 import rclpy
@@ -29,6 +30,18 @@ WAIT_S = 30.0
 STOP_TIMEOUT_S = 15.0
 SPIN_S = 0.05
 ROSOUT_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Property-based tests: a short fixed budget in every run, derandomised so that CI sees the
+# same examples each time; FOLLOWBOT_FUZZ_EXAMPLES=5000 (say) for a longer, random search.
+FUZZ_EXAMPLES_VARIABLE = 'FOLLOWBOT_FUZZ_EXAMPLES'
+DEFAULT_FUZZ_EXAMPLES = 40
+_LONG_FUZZ = FUZZ_EXAMPLES_VARIABLE in os.environ
+settings.register_profile(
+    'followbot', max_examples=int(os.environ.get(FUZZ_EXAMPLES_VARIABLE,
+                                                 DEFAULT_FUZZ_EXAMPLES)),
+    derandomize=not _LONG_FUZZ, deadline=None, database=None, print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
+                           HealthCheck.data_too_large, HealthCheck.large_base_example])
+settings.load_profile('followbot')
 
 
 def run_domain_id() -> int:

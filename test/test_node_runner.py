@@ -1,9 +1,13 @@
-"""The stop-signal record shared by every followbot process."""
+"""What every followbot node process shares: stop signals, start-up errors."""
 
 import os
 import signal
+import subprocess
+import sys
 
-from followbot.node_runner import STOP_SIGNALS, StopSignals
+from conftest import child_environment
+from followbot.node_runner import logger_name, STOP_SIGNALS, StopSignals
+import pytest
 
 
 def test_every_stop_signal_is_recorded_and_the_process_goes_on():
@@ -23,3 +27,28 @@ def test_every_stop_signal_is_recorded_and_the_process_goes_on():
 
 def test_a_record_not_installed_is_never_set():
     assert not StopSignals().is_set()
+
+
+@pytest.mark.parametrize('argv, expected', [
+    ([], 'followbot_sim'),
+    (['--ros-args', '-r', '__ns:=/robot1'], 'robot1.followbot_sim'),
+    (['--ros-args', '--remap', '__ns:=/fleet/robot2/'], 'fleet.robot2.followbot_sim'),
+    (['--ros-args', '-r', '__node:=sim2', '-r', '__ns:=/r1'], 'r1.sim2'),
+    (['--ros-args', '-r', 'follower:__ns:=/elsewhere'], 'followbot_sim'),
+    (['--ros-args', '-r', 'followbot_sim:__ns:=/r3', '--', 'other'], 'r3.followbot_sim'),
+    (['-r', '__ns:=/not_ros_arguments'], 'followbot_sim'),
+])
+def test_startup_errors_are_logged_under_the_name_the_node_would_have(argv, expected):
+    assert logger_name('followbot_sim', argv) == expected
+
+
+def test_a_node_that_cannot_start_says_so_under_its_own_name():
+    result = subprocess.run(
+        [sys.executable, '-m', 'followbot_sim.sim_node', '--ros-args', '-r', '__ns:=/robot7',
+         '-p', 'course:=no_such_course'], capture_output=True, text=True, timeout=60,
+        env=child_environment())
+    assert result.returncode == 2
+    lines = [line for line in result.stderr.splitlines() if 'Cannot start' in line]
+    assert len(lines) == 1, result.stderr
+    assert '[robot7.followbot_sim]' in lines[0]
+    assert '[SimulatorNode]' not in result.stderr
