@@ -2,9 +2,12 @@
 Convert between sensor_msgs/msg/Image and NumPy arrays, replacing cv_bridge.
 
 cv_bridge is not available without a ROS install and breaks under NumPy 2, so followbot owns
-the small part of it that it needs: the 8-bit colour and mono encodings, and 32FC1 for depth
-images in metres. Row padding (``step``) and byte order are honoured, every field is validated,
-and one error type is raised.
+the small part of it that it needs: the 8-bit colour and mono encodings, what cameras send
+raw (4:2:2 YUV in both byte orders, the four Bayer mosaics), and 32FC1 for depth images in
+metres. Row padding (``step``) and byte order are honoured, every field is validated, and one
+error type is raised. Arrays hold the pixels as the message stores them (two bytes per pixel
+for YUV, the mosaic for Bayer); :func:`to_bgr` turns any of the colour encodings into BGR.
+Compressed images are :mod:`followbot.compressed_image`'s subject.
 """
 
 import array
@@ -14,14 +17,30 @@ import cv2
 import numpy as np
 from sensor_msgs.msg import Image
 
-SUPPORTED_ENCODINGS = ('bgr8', 'rgb8', 'bgra8', 'rgba8', 'mono8', '32FC1')
+# 4:2:2 YUV: each two pixels side by side share one U and one V sample, four bytes in all.
+# ROS's 'yuv422' is UYVY byte order and 'yuv422_yuy2' is YUYV (sensor_msgs/image_encodings.hpp);
+# 'uyvy' and 'yuyv' name the same orders plainly.
+UYVY_ENCODINGS = ('yuv422', 'uyvy')
+YUYV_ENCODINGS = ('yuv422_yuy2', 'yuyv')
+YUV422_ENCODINGS = (*UYVY_ENCODINGS, *YUYV_ENCODINGS)
+# Pixels that share their chroma in 4:2:2 YUV: the width must be a multiple of this.
+YUV422_PIXELS_PER_GROUP = 2
+# 8-bit Bayer mosaics, named by the colours of the top-left 2x2 cell, row by row.
+BAYER_ENCODINGS = ('bayer_rggb8', 'bayer_bggr8', 'bayer_gbrg8', 'bayer_grbg8')
 
+SUPPORTED_ENCODINGS = (
+    'bgr8', 'rgb8', 'bgra8', 'rgba8', 'mono8', *YUV422_ENCODINGS, *BAYER_ENCODINGS, '32FC1')
+
+# Channels of an array holding each encoding as stored: YUV has two bytes per pixel (Y and one
+# of U or V), a Bayer mosaic one sample per pixel.
 CHANNELS_BY_ENCODING = {
     'bgr8': 3,
     'rgb8': 3,
     'bgra8': 4,
     'rgba8': 4,
     'mono8': 1,
+    **dict.fromkeys(YUV422_ENCODINGS, 2),
+    **dict.fromkeys(BAYER_ENCODINGS, 1),
     '32FC1': 1,
 }
 
@@ -31,12 +50,21 @@ DTYPE_BY_ENCODING = {
 }
 BYTE_DTYPE = np.dtype(np.uint8)
 
-# cv2.cvtColor codes that turn each encoding into BGR; bgr8 needs no conversion.
+# cv2.cvtColor codes that turn each encoding into BGR; bgr8 needs no conversion. OpenCV's YUV
+# conversions use BT.601 with studio range (Y 16-235), as cameras and cv_bridge do. OpenCV
+# names a Bayer mosaic by the second and third pixels of its second row, ROS by its top-left
+# 2x2 cell: ROS's rggb is OpenCV's BG, as in cv_bridge (the tests check it on a mosaic).
 _BGR_CONVERSION_BY_ENCODING = {
     'rgb8': cv2.COLOR_RGB2BGR,
     'bgra8': cv2.COLOR_BGRA2BGR,
     'rgba8': cv2.COLOR_RGBA2BGR,
     'mono8': cv2.COLOR_GRAY2BGR,
+    **{encoding: cv2.COLOR_YUV2BGR_UYVY for encoding in UYVY_ENCODINGS},
+    **{encoding: cv2.COLOR_YUV2BGR_YUYV for encoding in YUYV_ENCODINGS},
+    'bayer_rggb8': cv2.COLOR_BayerBG2BGR,
+    'bayer_bggr8': cv2.COLOR_BayerRG2BGR,
+    'bayer_gbrg8': cv2.COLOR_BayerGR2BGR,
+    'bayer_grbg8': cv2.COLOR_BayerGB2BGR,
 }
 COLOUR_ENCODINGS = ('bgr8', *_BGR_CONVERSION_BY_ENCODING)
 
@@ -55,7 +83,7 @@ def channels_of(encoding):
     Return the number of channels of a supported encoding.
 
     :param encoding: a sensor_msgs/msg/Image encoding string, such as 'bgr8'.
-    :return: 1, 3 or 4.
+    :return: 1, 2, 3 or 4.
     :raises ImageConversionError: if the encoding is not one of SUPPORTED_ENCODINGS.
     """
     try:
@@ -85,7 +113,8 @@ def expected_shape(height, width, encoding):
     :param height: image height in pixels.
     :param width: image width in pixels.
     :param encoding: one of SUPPORTED_ENCODINGS.
-    :return: (height, width) for mono8, else (height, width, channels).
+    :return: (height, width) for the one-channel encodings (mono8, Bayer, 32FC1), else
+        (height, width, channels).
     :raises ImageConversionError: if the encoding is not supported.
     """
     channels = channels_of(encoding)
@@ -98,8 +127,8 @@ def check_array(image, encoding):
     """
     Check that an array holds a non-empty image of the given encoding.
 
-    Only the row and column counts are free; the number of dimensions and channels follow
-    from the encoding.
+    Only the row and column counts are free (the width even for 4:2:2 YUV); the number of
+    dimensions and channels follow from the encoding.
 
     :param image: the array to check.
     :param encoding: one of SUPPORTED_ENCODINGS.
@@ -124,14 +153,27 @@ def check_array(image, encoding):
             f'Encoding {encoding!r} needs an array of shape {needed}, got {image.shape}.')
     if image.size == 0:
         raise ImageConversionError(f'Image has zero size: shape {image.shape}.')
+    _check_width(image.shape[1], encoding)
 
 
-def _as_flat_bytes(data):
+def _check_width(width, encoding):
+    """Refuse an odd width for 4:2:2 YUV, whose pixels come in pairs sharing their colour."""
+    if encoding in YUV422_ENCODINGS and width % YUV422_PIXELS_PER_GROUP:
+        raise ImageConversionError(
+            f'Encoding {encoding!r} stores pixels in pairs that share their colour, so the '
+            f'width must be even; got {width}.')
+
+
+def flat_bytes(data):
     """
-    Return the message data as a read-only flat uint8 array, without copying if possible.
+    Return a message's ``uint8[] data`` as a read-only flat uint8 array, copying only if needed.
 
-    rclpy stores Image.data as array.array('B'), which exposes the buffer protocol; plain
-    lists (from hand-made message-like objects) are copied.
+    rclpy stores such data as array.array('B'), which exposes the buffer protocol and is
+    viewed in place; plain lists (from hand-made message-like objects) are copied.
+
+    :param data: the message's data: any buffer of bytes, or a sequence of ints 0-255.
+    :return: a one-dimensional read-only uint8 array.
+    :raises ImageConversionError: if the data is not a sequence of bytes.
     """
     try:
         flat = np.frombuffer(data, dtype=np.uint8)
@@ -159,10 +201,11 @@ def image_to_array(msg):
     :param msg: a sensor_msgs/msg/Image, or any object with height, width, encoding,
         is_bigendian, step and data.
     :return: shape (height, width, channels) in the message's channel order, or
-        (height, width) for mono8 and 32FC1; uint8, or float32 for 32FC1.
-    :raises ImageConversionError: if the encoding is unsupported, a size is zero, the step
-        is shorter than a row or not a whole number of elements, or the data is shorter than
-        step * height.
+        (height, width) for mono8, the Bayer mosaics and 32FC1; uint8, or float32 for 32FC1.
+        A 4:2:2 YUV image is (height, width, 2) as stored: Y, then U or V, for each pixel.
+    :raises ImageConversionError: if the encoding is unsupported, a size is zero, a 4:2:2
+        image's width is odd, the step is shorter than a row or not a whole number of
+        elements, or the data is shorter than step * height.
     """
     channels = channels_of(msg.encoding)
     dtype = dtype_of(msg.encoding)
@@ -172,6 +215,7 @@ def image_to_array(msg):
     if height < 1 or width < 1:
         raise ImageConversionError(
             f'Image has zero size: height {height}, width {width}.')
+    _check_width(width, msg.encoding)
     row_bytes = width * channels * dtype.itemsize
     if step < row_bytes:
         raise ImageConversionError(
@@ -180,7 +224,7 @@ def image_to_array(msg):
     if step % dtype.itemsize:
         raise ImageConversionError(
             f'Image step {step} is not a whole number of {dtype.itemsize}-byte elements.')
-    flat = _as_flat_bytes(msg.data)
+    flat = flat_bytes(msg.data)
     needed_bytes = step * height
     if flat.size < needed_bytes:
         raise ImageConversionError(
@@ -196,10 +240,13 @@ def to_bgr(image, encoding):
     """
     Return a contiguous BGR copy of an image, or the image itself if it already is one.
 
-    Works on any row slice of an image from image_to_array, padded or not.
+    Works on any row slice of an image from image_to_array, padded or not. A slice of a Bayer
+    mosaic must start on an even row to keep its pattern, and the rows at its edges are
+    interpolated without the rows beyond it.
 
     :param image: a uint8 array of the shape the encoding needs.
-    :param encoding: one of COLOUR_ENCODINGS.
+    :param encoding: one of COLOUR_ENCODINGS: a 4:2:2 YUV image is converted with BT.601
+        (studio range), a Bayer mosaic is demosaiced bilinearly.
     :return: a C-contiguous (H, W, 3) uint8 array. For bgr8 this is ``image`` itself when it
         is already contiguous, so it is as read-only as the input.
     :raises ImageConversionError: if the encoding has no colour (32FC1) or the encoding or
@@ -214,6 +261,51 @@ def to_bgr(image, encoding):
     if conversion is None:
         return np.ascontiguousarray(image)
     return cv2.cvtColor(image, conversion)
+
+
+# cv2.cvtColor codes that turn an RGB image (a renderer's) into each camera encoding.
+_CONVERSION_FROM_RGB = {
+    'bgr8': cv2.COLOR_RGB2BGR,
+    'bgra8': cv2.COLOR_RGB2BGRA,
+    'rgba8': cv2.COLOR_RGB2RGBA,
+    'mono8': cv2.COLOR_RGB2GRAY,
+    **{encoding: cv2.COLOR_RGB2YUV_UYVY for encoding in UYVY_ENCODINGS},
+    **{encoding: cv2.COLOR_RGB2YUV_YUY2 for encoding in YUYV_ENCODINGS},
+}
+# Which colour plane each pixel of a Bayer pattern's 2x2 cell samples, in RGB order.
+_RGB_PLANE = {'r': 0, 'g': 1, 'b': 2}
+BAYER_CELL_PX = 2
+
+
+def from_rgb(image_rgb, encoding, out):
+    """
+    Write an RGB image in a camera encoding: what a camera of that kind would send of it.
+
+    :param image_rgb: a contiguous (H, W, 3) uint8 RGB image.
+    :param encoding: an 8-bit encoding of SUPPORTED_ENCODINGS: 4:2:2 YUV is BT.601 studio
+        range, a Bayer mosaic samples each pixel's own plane of its pattern.
+    :param out: the array to write, of the encoding's shape (as from :func:`message_pixels`).
+    :return: ``out``.
+    :raises ImageConversionError: for 32FC1, or arrays of the wrong shape.
+    """
+    check_array(image_rgb, 'rgb8')
+    check_array(out, encoding)
+    if out.shape[:2] != image_rgb.shape[:2]:
+        raise ImageConversionError(f'The output must be {image_rgb.shape[:2]}, got '
+                                   f'{out.shape[:2]}.')
+    if encoding == 'rgb8':
+        np.copyto(out, image_rgb)
+    elif encoding in BAYER_ENCODINGS:
+        pattern = encoding.removeprefix('bayer_').removesuffix('8')
+        for index, plane in enumerate(pattern):
+            row, column = divmod(index, BAYER_CELL_PX)
+            out[row::BAYER_CELL_PX, column::BAYER_CELL_PX] = image_rgb[
+                row::BAYER_CELL_PX, column::BAYER_CELL_PX, _RGB_PLANE[plane]]
+    elif encoding in _CONVERSION_FROM_RGB:
+        cv2.cvtColor(image_rgb, _CONVERSION_FROM_RGB[encoding], dst=out)
+    else:
+        raise ImageConversionError(f'Cannot write an RGB image as {encoding!r}.')
+    return out
 
 
 def array_to_image(image, encoding, msg=None):
@@ -261,10 +353,12 @@ def message_pixels(msg, height, width, encoding):
     :param encoding: one of SUPPORTED_ENCODINGS.
     :return: a C-contiguous array of the shape and element type of the encoding, sharing
         memory with ``msg.data``; valid until ``msg.data`` is replaced.
-    :raises ImageConversionError: if the encoding is not supported or a size is not positive.
+    :raises ImageConversionError: if the encoding is not supported, a size is not positive,
+        or a 4:2:2 image's width is odd.
     """
     if height < 1 or width < 1:
         raise ImageConversionError(f'Image has zero size: height {height}, width {width}.')
+    _check_width(width, encoding)
     _describe_image(msg, height, width, encoding)
     size_bytes = msg.step * msg.height
     data = _reusable_data(msg, size_bytes)

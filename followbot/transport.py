@@ -21,6 +21,16 @@ from followbot.package_files import share_file
 FASTDDS_PROFILE_NAME = 'fastdds_shm.xml'
 # The variable Fast DDS 2.x (ROS 2 Jazzy's rmw_fastrtps_cpp) reads its default profile from.
 FASTDDS_PROFILE_VARIABLE = 'FASTRTPS_DEFAULT_PROFILES_FILE'
+# Everything by which a user configures Fast DDS: the profile file variables (2.x and 3.x
+# names), the built-in transport presets (FASTDDS_BUILTIN_TRANSPORTS=DEFAULT asks for Fast
+# DDS's own defaults), and the profile files Fast DDS loads from the working directory.
+USER_CONFIGURATION_VARIABLES = (FASTDDS_PROFILE_VARIABLE, 'FASTDDS_DEFAULT_PROFILES_FILE',
+                                'FASTDDS_BUILTIN_TRANSPORTS')
+WORKING_DIRECTORY_PROFILES = ('DEFAULT_FASTRTPS_PROFILES.xml', 'DEFAULT_FASTDDS_PROFILES.xml')
+RMW_VARIABLE = 'RMW_IMPLEMENTATION'
+FASTDDS_RMW = 'rmw_fastrtps_cpp'
+# The middleware needs no profile of ours when it is not Fast DDS.
+NOT_FASTDDS = 'not Fast DDS'
 # mallopt parameters, from glibc's malloc.h.
 M_TRIM_THRESHOLD = -1
 M_TOP_PAD = -2
@@ -45,20 +55,43 @@ def fastdds_profile_path():
     return share_file('config', FASTDDS_PROFILE_NAME)
 
 
+def users_fastdds_configuration(environment: dict, working_directory='.') -> str | None:
+    """
+    Say which Fast DDS configuration of the user's is in force, if any.
+
+    :param environment: the environment the ROS process runs in.
+    :param working_directory: its working directory, where Fast DDS looks for profile files.
+    :return: e.g. ``'FASTRTPS_DEFAULT_PROFILES_FILE=/etc/my.xml'``; ``NOT_FASTDDS`` when the
+        middleware is another one; None when Fast DDS would run on its built-in defaults.
+    """
+    rmw = environment.get(RMW_VARIABLE)
+    if rmw and rmw != FASTDDS_RMW:
+        return NOT_FASTDDS
+    for variable in USER_CONFIGURATION_VARIABLES:
+        if environment.get(variable):
+            return f'{variable}={environment[variable]}'
+    for name in WORKING_DIRECTORY_PROFILES:
+        path = os.path.join(working_directory, name)
+        if os.path.isfile(path):
+            return os.path.abspath(path)
+    return None
+
+
 def environment_with_profile(environment: dict) -> tuple:
     """
     Return an environment whose Fast DDS participants use the package's profile.
 
-    A profile the user chose already (the variable set and not empty) is kept.
+    A configuration of the user's (see :func:`users_fastdds_configuration`) is kept.
 
     :param environment: the environment to start from; it is not changed.
-    :return: (the new environment, the profile path in force).
+    :return: (the new environment, the configuration in force as a text to follow 'Fast DDS ':
+        ``'profile <path>'`` for the package's, ``'configuration of yours, <what>'``).
     """
-    chosen = environment.get(FASTDDS_PROFILE_VARIABLE)
-    if chosen:
-        return dict(environment), chosen
+    chosen = users_fastdds_configuration(environment)
+    if chosen is not None:
+        return dict(environment), f'configuration of yours, {chosen}'
     path = str(fastdds_profile_path())
-    return {**environment, FASTDDS_PROFILE_VARIABLE: path}, path
+    return {**environment, FASTDDS_PROFILE_VARIABLE: path}, f'profile {path}'
 
 
 def environment_without_profile(environment: dict) -> dict:
@@ -66,10 +99,35 @@ def environment_without_profile(environment: dict) -> dict:
     Return an environment whose Fast DDS participants use Fast DDS's defaults.
 
     :param environment: the environment to start from; it is not changed.
-    :return: the environment without a default profile file.
+    :return: the environment without a profile file, asking for the default transports.
     """
-    return {name: value for name, value in environment.items()
-            if name != FASTDDS_PROFILE_VARIABLE}
+    return {**{name: value for name, value in environment.items()
+               if name not in USER_CONFIGURATION_VARIABLES},
+            'FASTDDS_BUILTIN_TRANSPORTS': 'DEFAULT'}
+
+
+def use_package_profile() -> str | None:
+    """
+    Give this process's Fast DDS participants the package's profile, unless the user chose.
+
+    Call it before ``rclpy.init``. Without it a node run by ``ros2 run`` sends camera images
+    over fragmented UDP and loses some of them.
+
+    :return: one line saying which configuration is in force, for the node's log; None when
+        the middleware is not Fast DDS.
+    """
+    chosen = users_fastdds_configuration(os.environ)
+    if chosen == NOT_FASTDDS:
+        return None
+    if chosen is not None:
+        return f'Fast DDS configuration: yours ({chosen}).'
+    try:
+        path = str(fastdds_profile_path())
+    except FileNotFoundError as error:
+        return f'Fast DDS configuration: its defaults; camera images may be lost ({error})'
+    os.environ[FASTDDS_PROFILE_VARIABLE] = path
+    return (f"Fast DDS configuration: followbot's profile {path}, so images go whole through "
+            f'shared memory (set {FASTDDS_PROFILE_VARIABLE} to use your own).')
 
 
 def keep_large_buffers() -> bool:

@@ -5,7 +5,7 @@ Publishes the Kinect-style camera (RGB, depth, point cloud and their camera_info
 joint states, the robot's transforms, ``/clock`` and a ground-truth score; obeys ``cmd_vel``;
 serves pause, step and reset. Physics, rendering, odometry and scoring live in the pure modules
 (:mod:`followbot_sim.world`, :mod:`followbot_sim.course`, :mod:`followbot_sim.odometry`);
-messages are built in :mod:`followbot_sim.messages`. This node only turns them into parameters,
+messages are built in :mod:`followbot.messages`. This node only turns them into parameters,
 topics, services and a timer.
 """
 
@@ -16,19 +16,22 @@ import time
 from builtin_interfaces.msg import Time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from followbot.image_conversion import array_to_image, message_pixels
+from followbot import frames
+from followbot import messages
+from followbot.compressed_image import array_to_compressed
+from followbot.image_conversion import (array_to_image, BYTE_DTYPE, dtype_of, from_rgb,
+                                        message_pixels, SUPPORTED_ENCODINGS)
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec
-from followbot_sim import frames
-from followbot_sim import messages
 from followbot_sim.course import LapTracker
 from followbot_sim.course_file import load_course
 from followbot_sim.depth import depth_to_points
-from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits,
-                                      KOBUKI_COMMAND_TIMEOUT_S,
-                                      KOBUKI_MAX_ANGULAR_SPEED_RADPS,
-                                      KOBUKI_MAX_LINEAR_SPEED_MPS, TIME_EPSILON_S)
+from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits, KOBUKI_COMMAND_TIMEOUT_S,
+                                      KOBUKI_MAX_ANGULAR_SPEED_RADPS, KOBUKI_MAX_LINEAR_SPEED_MPS,
+                                      TIME_EPSILON_S)
 from followbot_sim.odometry import WheelOdometry
+from followbot_sim.score import score_status_name, SIMULATOR_NODE
+from followbot_sim.trail import Trail
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
                                  FollowbotWorld, LEFT_WHEEL_JOINT, RenderingUnavailableError,
                                  RIGHT_WHEEL_JOINT, ViewerUnavailableError)
@@ -39,17 +42,22 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState, PointCloud2
 from std_msgs.msg import Header
 from std_srvs.srv import SetBool, Trigger
 
 try:
     from tf2_msgs.msg import TFMessage
-except ImportError:  # tf2_msgs is not on PyPI; a sourced ROS 2 install has it.
+except ImportError:  # Not on PyPI: make setup builds config/tf2_msgs; ROS 2 installs have it.
     TFMessage = None
 
-SIMULATOR_NODE = 'followbot_sim'
-IMAGE_ENCODINGS = ('bgr8', 'rgb8')
+# One call of the step service advances at most this many physics steps (10 s simulated, a few
+# seconds of wall time with the camera): the node answers nothing else meanwhile.
+MAX_STEP_PHYSICS_STEPS = 5000
+# Every 8-bit encoding a camera sends: what the follower must take from a real one.
+IMAGE_ENCODINGS = tuple(encoding for encoding in SUPPORTED_ENCODINGS
+                        if dtype_of(encoding) == BYTE_DTYPE)
+COMPRESSED_SUFFIX = '/compressed'
 SIMULATOR_PARAMETERS = {
     'course': ParameterSpec(
         'book_loop', 'Course to load: a built-in name (see the README) or the path of a YAML '
@@ -76,8 +84,9 @@ SIMULATOR_PARAMETERS = {
         False, 'Start paused: time advances only through the step service until unpaused.',
         read_only=True),
     'step_physics_steps': ParameterSpec(
-        1, 'Physics steps (2 ms each) that one call of the step service advances.', 1,
-        1_000_000),
+        1, 'Physics steps (2 ms each) that one call of the step service advances (at most '
+        '10 s of simulated time: the node serves nothing else while it steps).', 1,
+        MAX_STEP_PHYSICS_STEPS),
     'camera_rate_hz': ParameterSpec(
         20.0, 'Camera frames (RGB and depth) per simulated second.', 1.0, 60.0, read_only=True),
     'clock_rate_hz': ParameterSpec(
@@ -89,8 +98,14 @@ SIMULATOR_PARAMETERS = {
     'image_width_px': ParameterSpec(640, 'Camera image width.', 16, 1280, read_only=True),
     'image_height_px': ParameterSpec(480, 'Camera image height.', 16, 1280, read_only=True),
     'image_encoding': ParameterSpec(
-        'bgr8', "Encoding of camera/rgb/image_raw: bgr8 (as the book's Gazebo Kinect) or "
-        'rgb8.', read_only=True),
+        'bgr8', "Encoding of camera/rgb/image_raw: bgr8 (as the book's Gazebo Kinect), or "
+        'any a real camera sends: ' + ', '.join(
+            encoding for encoding in IMAGE_ENCODINGS if encoding != 'bgr8') + '.',
+        read_only=True),
+    'jpeg_quality': ParameterSpec(
+        95, 'JPEG quality of camera/rgb/image_raw/compressed (sensor_msgs/CompressedImage, '
+        "as image_transport's compressed plugin publishes it; encoded only while someone "
+        'subscribes).', 1, 100),
     'rgb_enabled': ParameterSpec(
         True, 'Publish camera/rgb/image_raw and camera/rgb/camera_info.', read_only=True),
     'depth_enabled': ParameterSpec(
@@ -135,7 +150,6 @@ MAX_CATCH_UP_WALL_S = 0.1
 # Fall this far behind the requested real-time factor and the pacing restarts from now
 # instead of fast-forwarding through the backlog.
 MAX_PACING_LAG_S = 0.5
-TRAIL_SPACING_M = 0.01
 # How often the node looks for cmd_vel publishers of the other message type (wall time).
 CMD_VEL_TYPE_CHECK_PERIOD_S = 2.0
 # Lockstep: how often a held simulator looks for its follower (wall time).
@@ -180,6 +194,8 @@ class _Periodic:
 class SimulatorNode(Node):
     """A TurtleBot 2 with a Kinect on a line course, simulated in MuJoCo."""
 
+    NODE_NAME = SIMULATOR_NODE
+
     def __init__(self, **kwargs):
         """
         Declare the parameters, build the world, the publishers and services, and start.
@@ -189,7 +205,7 @@ class SimulatorNode(Node):
         :raises ValueError: for a parameter value the simulator cannot use (unknown course,
             unreadable course file, unknown image encoding).
         """
-        super().__init__(SIMULATOR_NODE, **kwargs)
+        super().__init__(self.NODE_NAME, **kwargs)
         parameters = declare_parameters(self, SIMULATOR_PARAMETERS)
         self._real_time_factor = parameters['real_time_factor']
         self._overview_size_px = parameters['overview_size_px']
@@ -213,7 +229,7 @@ class SimulatorNode(Node):
         self._lap_tracker = LapTracker(course)
         self._odometry = WheelOdometry(limits.wheel_radius_m, limits.wheel_separation_m)
         self._odometry.update(*self._world.wheel_angles(), self._world.time_s)
-        self._trail_xy = []
+        self._trail = Trail()
         self._laps_reported = 0
         self._commands_received = 0
         self._last_score_stamp = None
@@ -293,8 +309,13 @@ class SimulatorNode(Node):
         size_px = self._world.image_size_px
         self._image_publisher = self._camera_info_publisher = None
         self._depth_publisher = self._depth_info_publisher = self._points_publisher = None
+        self._compressed_publisher = None
         if parameters['rgb_enabled']:
             self._image_publisher = self.create_publisher(Image, 'camera/rgb/image_raw', 10)
+            self._compressed_publisher = self.create_publisher(
+                CompressedImage, self._image_publisher.topic_name + COMPRESSED_SUFFIX, 10)
+            self._compressed_msg = CompressedImage(header=Header(
+                frame_id=frames.CAMERA_RGB_OPTICAL_FRAME))
             self._camera_info_publisher = self.create_publisher(
                 CameraInfo, 'camera/rgb/camera_info', 10)
         if parameters['depth_enabled']:
@@ -330,8 +351,8 @@ class SimulatorNode(Node):
         if TFMessage is None:
             self.get_logger().warn(
                 'tf2_msgs is not importable (it is not on PyPI), so /tf and /tf_static are not '
-                'published; source a ROS 2 Jazzy install to get them. odom, joint_states and '
-                'the camera topics are unaffected.')
+                'published; `make setup` builds it into the venv, and a ROS 2 Jazzy install has '
+                'it. odom, joint_states and the camera topics are unaffected.')
             return
         self._tf_publisher = self.create_publisher(TFMessage, '/tf', 100)
         self._tf_static_publisher = self.create_publisher(TFMessage, '/tf_static', TF_STATIC_QOS)
@@ -457,7 +478,7 @@ class SimulatorNode(Node):
         self._lap_tracker.reset()
         self._odometry.reset()
         self._odometry.update(*self._world.wheel_angles(), self._world.time_s)
-        self._trail_xy.clear()
+        self._trail.clear()
         self._laps_reported = 0
         self._finished = False
         response.success = True
@@ -494,7 +515,8 @@ class SimulatorNode(Node):
 
     def _partner_present(self) -> bool:
         return (self._image_publisher is not None
-                and self._image_publisher.get_subscription_count() > 0
+                and (self._image_publisher.get_subscription_count() > 0
+                     or self._compressed_publisher.get_subscription_count() > 0)
                 and self.count_publishers(self._cmd_vel_subscription.topic_name) > 0)
 
     def _hold_for_partner(self) -> None:
@@ -586,16 +608,7 @@ class SimulatorNode(Node):
         self._clock_publisher.publish(ClockMsg(clock=stamp))
         x_m, y_m, _ = self._world.robot_pose()
         self._lap_tracker.update(x_m, y_m, self._world.time_s)
-        self._record_trail(x_m, y_m)
-
-    def _record_trail(self, x_m: float, y_m: float) -> None:
-        # Every tick would store 100 points a second for as long as the run lasts; a point a
-        # centimetre draws the same path in the overview.
-        if self._trail_xy:
-            last_x_m, last_y_m = self._trail_xy[-1]
-            if math.hypot(x_m - last_x_m, y_m - last_y_m) < TRAIL_SPACING_M:
-                return
-        self._trail_xy.append((x_m, y_m))
+        self._trail.add(x_m, y_m)
 
     def _publish_robot_state(self, stamp: Time) -> None:
         world = self._world
@@ -619,8 +632,10 @@ class SimulatorNode(Node):
             # camera_info first: a follower then knows the intrinsics when the image comes.
             self._rgb_info_msg.header.stamp = stamp
             self._camera_info_publisher.publish(self._rgb_info_msg)
-            if self._image_publisher.get_subscription_count() > 0:
-                self._publish_rgb(stamp)
+            raw_wanted = self._image_publisher.get_subscription_count() > 0
+            compressed_wanted = self._compressed_publisher.get_subscription_count() > 0
+            if raw_wanted or compressed_wanted:
+                self._publish_rgb(stamp, raw_wanted, compressed_wanted)
                 if self._lockstep and not self._paused and self._partner_present():
                     self._await_command()
         depth_wanted = (self._depth_publisher is not None
@@ -633,17 +648,21 @@ class SimulatorNode(Node):
             self._depth_info_msg.header.stamp = stamp
             self._depth_info_publisher.publish(self._depth_info_msg)
 
-    def _publish_rgb(self, stamp: Time) -> None:
+    def _publish_rgb(self, stamp: Time, raw: bool = True, compressed: bool = False) -> None:
         rgb = self._world.render_camera()
         width_px, height_px = self._world.image_size_px
-        # Converted (or copied) straight into the message: no frame-sized copy of our own.
-        pixels = message_pixels(self._image_msg, height_px, width_px, self._image_encoding)
-        if self._image_encoding == 'bgr8':
-            cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR, dst=pixels)
-        else:
-            np.copyto(pixels, rgb)
-        self._image_msg.header.stamp = stamp
-        self._image_publisher.publish(self._image_msg)
+        if raw:
+            # Converted straight into the message: no frame-sized copy of our own.
+            from_rgb(rgb, self._image_encoding,
+                     message_pixels(self._image_msg, height_px, width_px,
+                                    self._image_encoding))
+            self._image_msg.header.stamp = stamp
+            self._image_publisher.publish(self._image_msg)
+        if compressed:
+            array_to_compressed(rgb, 'rgb8', jpeg_quality=self.get_parameter(
+                'jpeg_quality').value, msg=self._compressed_msg)
+            self._compressed_msg.header.stamp = stamp
+            self._compressed_publisher.publish(self._compressed_msg)
 
     def _publish_depth(self, stamp: Time, depth_wanted: bool, points_wanted: bool) -> None:
         depth_m = self._world.render_depth()
@@ -663,8 +682,8 @@ class SimulatorNode(Node):
         size_px = self._overview_size_px
         rgb = self._world.render_overview(size_px)
         bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
-        if len(self._trail_xy) > 1:
-            trail_px = self._world.overview_pixels(np.asarray(self._trail_xy), size_px)
+        if len(self._trail) > 1:
+            trail_px = self._world.overview_pixels(np.asarray(self._trail.points), size_px)
             cv2.polylines(bgr, [np.round(trail_px).astype(np.int32)], isClosed=False,
                           color=(0, 0, 255), thickness=2, lineType=cv2.LINE_AA)
         msg = array_to_image(bgr, 'bgr8')
@@ -684,8 +703,8 @@ class SimulatorNode(Node):
         self._last_score_stamp = stamp
         summary = self._lap_tracker.summary()
         status = DiagnosticStatus(
-            level=DiagnosticStatus.OK, name=messages.SCORE_STATUS_NAME,
-            hardware_id=SIMULATOR_NODE,
+            level=DiagnosticStatus.OK, name=score_status_name(self.get_fully_qualified_name()),
+            hardware_id=self.get_fully_qualified_name(),
             message=f"{summary['laps_completed']} laps, "
                     f'{100 * self._lap_tracker.distance_from_line_m:.1f} cm from the line')
         status.values = [KeyValue(key=key, value=str(value)) for key, value in summary.items()]

@@ -5,7 +5,9 @@ import re
 from types import SimpleNamespace
 
 import cv2
+from followbot import image_conversion
 from followbot.image_conversion import array_to_image
+from followbot.image_conversion import BAYER_ENCODINGS
 from followbot.image_conversion import CHANNELS_BY_ENCODING
 from followbot.image_conversion import COLOUR_ENCODINGS
 from followbot.image_conversion import dtype_of
@@ -14,17 +16,26 @@ from followbot.image_conversion import ImageConversionError
 from followbot.image_conversion import message_pixels
 from followbot.image_conversion import SUPPORTED_ENCODINGS
 from followbot.image_conversion import to_bgr
+from followbot.image_conversion import UYVY_ENCODINGS
+from followbot.image_conversion import YUV422_ENCODINGS
 import numpy as np
 import pytest
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
 
 SIZES_HW = ((1, 1), (3, 5), (4, 7), (480, 640))
+# 4:2:2 YUV pixels come in pairs: its images have even widths (and any height).
+EVEN_WIDTH_SIZES_HW = ((1, 2), (3, 6), (5, 8), (480, 640))
+ENCODING_SIZES = [
+    (encoding, height, width)
+    for encoding in SUPPORTED_ENCODINGS
+    for height, width in (EVEN_WIDTH_SIZES_HW if encoding in YUV422_ENCODINGS else SIZES_HW)]
+EIGHT_BIT_ENCODINGS = tuple(encoding for encoding in SUPPORTED_ENCODINGS if encoding != '32FC1')
 PADDING_BYTES = 7
 GARBAGE_BYTE = 0xAB
 
 # One known pixel, the course's yellow RGB(255, 246, 0), in each encoding's channel order,
-# with the BGR it must convert to.
+# with the BGR it must convert to (the encodings that store a whole pixel in each element).
 YELLOW_BY_ENCODING = {
     'bgr8': ((0, 246, 255), (0, 246, 255)),
     'rgb8': ((255, 246, 0), (0, 246, 255)),
@@ -69,8 +80,7 @@ def fake_message(**overrides):
     return SimpleNamespace(**fields)
 
 
-@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
-@pytest.mark.parametrize('height, width', SIZES_HW)
+@pytest.mark.parametrize('encoding, height, width', ENCODING_SIZES)
 def test_round_trip(encoding, height, width):
     image = random_image(height, width, encoding)
     msg = array_to_image(image, encoding)
@@ -83,8 +93,7 @@ def test_round_trip(encoding, height, width):
     np.testing.assert_array_equal(result, image)
 
 
-@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
-@pytest.mark.parametrize('height, width', SIZES_HW)
+@pytest.mark.parametrize('encoding, height, width', ENCODING_SIZES)
 def test_padded_step_skips_the_padding(encoding, height, width):
     image = random_image(height, width, encoding, seed=1)
     result = image_to_array(padded_message(image, encoding))
@@ -93,7 +102,7 @@ def test_padded_step_skips_the_padding(encoding, height, width):
 
 @pytest.mark.parametrize('encoding', COLOUR_ENCODINGS)
 def test_padded_step_garbage_does_not_reach_bgr(encoding):
-    image = np.zeros(random_image(3, 5, encoding).shape, dtype=np.uint8)
+    image = np.zeros(random_image(3, 6, encoding).shape, dtype=np.uint8)
     result = to_bgr(image_to_array(padded_message(image, encoding)), encoding)
     assert not np.any(result == GARBAGE_BYTE)
 
@@ -111,10 +120,11 @@ def test_image_to_array_result_is_read_only():
         result[0, 0, 0] = 1
 
 
+@pytest.mark.parametrize('encoding', EIGHT_BIT_ENCODINGS)
 @pytest.mark.parametrize('is_bigendian', (0, 1, False, True))
-def test_image_to_array_ignores_byte_order_of_8_bit_data(is_bigendian):
-    image = random_image(3, 4, 'rgba8')
-    msg = array_to_image(image, 'rgba8')
+def test_image_to_array_ignores_byte_order_of_8_bit_data(encoding, is_bigendian):
+    image = random_image(3, 4, encoding)
+    msg = array_to_image(image, encoding)
     msg.is_bigendian = is_bigendian
     np.testing.assert_array_equal(image_to_array(msg), image)
 
@@ -196,11 +206,11 @@ def test_array_to_image_refills_a_message_from_a_view_of_its_own_data():
 @pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
 def test_pixels_written_into_message_pixels_are_the_messages_image(encoding):
     msg = Image()
-    image = random_image(4, 5, encoding, seed=6)
-    pixels = message_pixels(msg, 4, 5, encoding)
+    image = random_image(4, 6, encoding, seed=6)
+    pixels = message_pixels(msg, 4, 6, encoding)
     assert pixels.flags.c_contiguous and pixels.flags.writeable
     pixels[...] = image
-    assert (msg.height, msg.width, msg.encoding) == (4, 5, encoding)
+    assert (msg.height, msg.width, msg.encoding) == (4, 6, encoding)
     np.testing.assert_array_equal(image_to_array(msg), image)
 
 
@@ -234,7 +244,7 @@ def test_array_to_image_packs_non_contiguous_arrays():
 
 
 @pytest.mark.parametrize('overrides, message_part', (
-    ({'encoding': 'yuv422'}, "Unsupported encoding 'yuv422'"),
+    ({'encoding': 'nv21'}, "Unsupported encoding 'nv21'"),
     ({'encoding': '16UC1'}, 'supported encodings are bgr8, rgb8, bgra8, rgba8, mono8'),
     ({'data': bytes(11)}, 'data length 11 is shorter than step*height 12'),
     ({'data': array.array('B')}, 'data length 0 is shorter than step*height 12'),
@@ -250,7 +260,9 @@ def test_image_to_array_rejects_bad_messages(overrides, message_part):
 
 
 @pytest.mark.parametrize('image, encoding, message_part', (
-    (np.zeros((2, 2, 3), np.uint8), 'yuv422', 'Unsupported encoding'),
+    (np.zeros((2, 2, 3), np.uint8), 'nv21', 'Unsupported encoding'),
+    (np.zeros((2, 2, 3), np.uint8), 'yuv422', r'shape \(H, W, 2\)'),
+    (np.zeros((2, 2, 2), np.uint8), 'bayer_rggb8', r'shape \(H, W\)'),
     (np.zeros((2, 2, 3), np.uint16), 'bgr8', 'dtype uint16'),
     (np.zeros((2, 2, 3), np.float32), 'rgb8', 'dtype float32'),
     (np.zeros((2, 2), np.float64), '32FC1', 'float32 array'),
@@ -273,7 +285,7 @@ def test_conversion_error_is_a_value_error():
     assert issubclass(ImageConversionError, ValueError)
 
 
-@pytest.mark.parametrize('encoding', COLOUR_ENCODINGS)
+@pytest.mark.parametrize('encoding', YELLOW_BY_ENCODING)
 def test_to_bgr_converts_a_known_pixel(encoding):
     pixel, expected_bgr = YELLOW_BY_ENCODING[encoding]
     image = np.zeros(random_image(2, 3, encoding).shape, dtype=np.uint8)
@@ -285,9 +297,10 @@ def test_to_bgr_converts_a_known_pixel(encoding):
     assert tuple(result[1, 2]) == expected_bgr
 
 
-@pytest.mark.parametrize('encoding', COLOUR_ENCODINGS)
+@pytest.mark.parametrize(
+    'encoding', [encoding for encoding in COLOUR_ENCODINGS if encoding not in BAYER_ENCODINGS])
 def test_to_bgr_works_on_row_slices_of_padded_images(encoding):
-    image = random_image(10, 9, encoding, seed=2)
+    image = random_image(10, 8, encoding, seed=2)
     view = image_to_array(padded_message(image, encoding))
     np.testing.assert_array_equal(to_bgr(view[4:7], encoding), to_bgr(image, encoding)[4:7])
 
@@ -313,3 +326,158 @@ def test_to_bgr_copies_non_contiguous_bgr8():
 def test_to_bgr_rejects_bad_arrays(image, encoding):
     with pytest.raises(ImageConversionError):
         to_bgr(image, encoding)
+
+
+# What cameras send raw: 4:2:2 YUV and Bayer mosaics.
+
+# Flat colours, BGR, each different in all three channels so that a swapped channel shows.
+PATCH_COLOURS_BGR = (
+    (0, 246, 255), (116, 116, 116), (30, 120, 220), (200, 40, 90), (0, 0, 0), (255, 255, 255),
+    (90, 200, 10))
+PATCH_WIDTH_PX = 8
+# Rows and columns at a patch's edge that demosaicing blends with its neighbour.
+BAYER_BLEND_PX = 2
+# OpenCV's fixed-point YUV conversion and the rounding of Y, U and V to bytes, in levels.
+YUV_TOLERANCE = 2
+# BT.601 studio range: Y in 16-235, U and V in 16-240 around 128 (ITU-R BT.601, per 255).
+STUDIO_Y_OFFSET = 16
+CHROMA_OFFSET = 128
+Y_FROM_RGB = (65.481, 128.553, 24.966)
+U_FROM_RGB = (-37.797, -74.203, 112.0)
+V_FROM_RGB = (112.0, -93.786, -18.214)
+FULL_SCALE = 255.0
+BAYER_CHANNEL_BY_LETTER = {'b': 0, 'g': 1, 'r': 2}
+
+
+def patches_bgr(height):
+    """Return a BGR image of PATCH_COLOURS_BGR side by side, PATCH_WIDTH_PX each."""
+    return np.repeat(np.array([PATCH_COLOURS_BGR], np.uint8), PATCH_WIDTH_PX, axis=1).repeat(
+        height, axis=0)
+
+
+def bayer_mosaic(bgr, encoding):
+    """Sample a BGR image as the encoding's mosaic: its name spells the top-left 2x2 cell."""
+    pattern = encoding.removeprefix('bayer_').removesuffix('8')
+    mosaic = np.empty(bgr.shape[:2], np.uint8)
+    for index, letter in enumerate(pattern):
+        row, column = divmod(index, 2)
+        mosaic[row::2, column::2] = bgr[row::2, column::2, BAYER_CHANNEL_BY_LETTER[letter]]
+    return mosaic
+
+
+def yuv422_bytes(bgr, encoding):
+    """Return the 4:2:2 bytes of a BGR image by BT.601, chroma from each pixel pair's mean."""
+    red, green, blue = (bgr[..., channel].astype(float) for channel in (2, 1, 0))
+
+    def weigh(weights):
+        return (weights[0] * red + weights[1] * green + weights[2] * blue) / FULL_SCALE
+
+    luma = STUDIO_Y_OFFSET + weigh(Y_FROM_RGB)
+    u = CHROMA_OFFSET + weigh(U_FROM_RGB)
+    v = CHROMA_OFFSET + weigh(V_FROM_RGB)
+    chroma = np.empty_like(luma)
+    chroma[:, 0::2] = (u[:, 0::2] + u[:, 1::2]) / 2
+    chroma[:, 1::2] = (v[:, 0::2] + v[:, 1::2]) / 2
+    planes = (chroma, luma) if encoding in UYVY_ENCODINGS else (luma, chroma)
+    return np.clip(np.rint(np.stack(planes, axis=2)), 0, 255).astype(np.uint8)
+
+
+def stored_and_converted(image, encoding, pad):
+    """Put an array in an Image (packed, or padded with garbage) and convert the view to BGR."""
+    msg = padded_message(image, encoding) if pad else array_to_image(image, encoding)
+    view = image_to_array(msg)
+    np.testing.assert_array_equal(view, image)
+    result = to_bgr(view, encoding)
+    assert result.shape == image.shape[:2] + (3,) and result.flags.c_contiguous
+    return result
+
+
+@pytest.mark.parametrize('encoding', BAYER_ENCODINGS)
+@pytest.mark.parametrize('pad', (False, True))
+def test_bayer_mosaic_demosaics_to_the_colours_it_was_made_from(encoding, pad):
+    result = stored_and_converted(bayer_mosaic(patches_bgr(height=8), encoding), encoding, pad)
+    inner_rows = slice(BAYER_BLEND_PX, -BAYER_BLEND_PX)
+    for index, colour in enumerate(PATCH_COLOURS_BGR):
+        left = index * PATCH_WIDTH_PX + BAYER_BLEND_PX
+        patch = result[inner_rows, left:left + PATCH_WIDTH_PX - 2 * BAYER_BLEND_PX]
+        assert np.all(patch == colour), (colour, patch[0, 0])
+
+
+@pytest.mark.parametrize('encoding', BAYER_ENCODINGS)
+def test_bayer_slice_from_an_even_row_keeps_its_inner_rows(encoding):
+    mosaic = random_image(12, 10, encoding, seed=8)
+    whole = to_bgr(mosaic, encoding)
+    sliced = to_bgr(image_to_array(padded_message(mosaic, encoding))[4:10], encoding)
+    np.testing.assert_array_equal(sliced[1:-1], whole[5:9])
+
+
+@pytest.mark.parametrize('encoding', YUV422_ENCODINGS)
+@pytest.mark.parametrize('pad', (False, True))
+def test_yuv422_converts_to_the_colours_it_was_made_from(encoding, pad):
+    bgr = patches_bgr(height=3)
+    result = stored_and_converted(yuv422_bytes(bgr, encoding), encoding, pad)
+    assert np.abs(result.astype(int) - bgr).max() <= YUV_TOLERANCE
+
+
+@pytest.mark.parametrize('encoding', YUV422_ENCODINGS)
+def test_yuv422_byte_order_matters(encoding):
+    bgr = patches_bgr(height=1)
+    other_order = YUV422_ENCODINGS[0] if encoding not in UYVY_ENCODINGS else 'yuyv'
+    result = to_bgr(yuv422_bytes(bgr, other_order), encoding)
+    assert np.abs(result.astype(int) - bgr).max() > 10 * YUV_TOLERANCE
+
+
+@pytest.mark.parametrize('encoding', YUV422_ENCODINGS)
+@pytest.mark.parametrize('convert', (
+    lambda encoding: image_to_array(fake_message(encoding=encoding, width=3, step=6)),
+    lambda encoding: array_to_image(np.zeros((2, 3, 2), np.uint8), encoding),
+    lambda encoding: to_bgr(np.zeros((2, 3, 2), np.uint8), encoding),
+    lambda encoding: message_pixels(Image(), 2, 3, encoding),
+), ids=('image_to_array', 'array_to_image', 'to_bgr', 'message_pixels'))
+def test_yuv422_refuses_an_odd_width(encoding, convert):
+    with pytest.raises(ImageConversionError, match='width must be even; got 3'):
+        convert(encoding)
+
+
+@pytest.mark.parametrize('encoding', SUPPORTED_ENCODINGS)
+def test_data_one_byte_short_is_refused(encoding):
+    msg = array_to_image(random_image(3, 4, encoding), encoding)
+    msg.data = msg.data[:-1]
+    with pytest.raises(ImageConversionError, match='shorter than step\\*height'):
+        image_to_array(msg)
+
+
+@pytest.mark.parametrize('encoding', (*YUV422_ENCODINGS, *BAYER_ENCODINGS))
+def test_raw_camera_encodings_are_colour_encodings(encoding):
+    assert encoding in COLOUR_ENCODINGS
+    assert encoding in SUPPORTED_ENCODINGS
+
+
+# Writing a renderer's RGB image as a camera of each kind would send it.
+
+@pytest.mark.parametrize('encoding', [encoding for encoding in
+                                      image_conversion.SUPPORTED_ENCODINGS
+                                      if encoding != '32FC1'])
+def test_from_rgb_writes_what_to_bgr_reads_back(encoding):
+    rgb = np.zeros((16, 24, 3), np.uint8)
+    rgb[:, :12] = (200, 150, 40)
+    rgb[:, 12:] = (30, 60, 220)
+    out = np.empty(image_conversion.expected_shape(16, 24, encoding), np.uint8)
+    assert image_conversion.from_rgb(rgb, encoding, out) is out
+    back = image_conversion.to_bgr(out, encoding)[..., ::-1]
+    if encoding == 'mono8':
+        expected = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+        assert (back[..., 0] == expected).all()
+        return
+    # Flat patches come back within a level or two (YUV rounding), away from their border,
+    # where 4:2:2 and Bayer interpolate across it.
+    for columns in (slice(2, 9), slice(15, 22)):
+        assert np.abs(back[2:-2, columns].astype(int) - rgb[2:-2, columns]).max() <= 2
+
+
+def test_from_rgb_refuses_depth_and_wrong_sizes():
+    rgb = np.zeros((4, 4, 3), np.uint8)
+    with pytest.raises(image_conversion.ImageConversionError):
+        image_conversion.from_rgb(rgb, '32FC1', np.zeros((4, 4), np.float32))
+    with pytest.raises(image_conversion.ImageConversionError, match='must be'):
+        image_conversion.from_rgb(rgb, 'bgr8', np.zeros((4, 6, 3), np.uint8))

@@ -7,8 +7,8 @@ A client node publishes Twists; the simulator's own world gives the ground truth
 import math
 
 from conftest import SimHarness
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from followbot_sim.messages import score_values
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from followbot_sim.score import score_status_name, score_values
 from followbot_sim.sim_node import SimulatorNode
 from geometry_msgs.msg import Twist, Vector3
 import pytest
@@ -68,6 +68,8 @@ def test_run_duration_ends_the_run_at_that_simulated_time(ros_context):
     ('real_time_factor', -1.0),
     ('camera_rate_hz', 0.0),
     ('course', 'no_such_course'),
+    # One step call may not hold the node for minutes.
+    ('step_physics_steps', 1_000_000),
 ])
 def test_bad_parameters_are_refused_at_start(ros_context, name, value):
     with pytest.raises((ParameterException, ValueError)) as raised:
@@ -94,3 +96,13 @@ def test_score_values_is_none_for_other_statuses():
     other = DiagnosticArray(status=[DiagnosticStatus(name='some driver: temperature')])
     assert score_values(other) is None
     assert score_values(DiagnosticArray()) is None
+
+
+def test_each_robots_score_is_named_after_its_simulator():
+    scores = DiagnosticArray(status=[
+        DiagnosticStatus(name=score_status_name(name), hardware_id=name,
+                         values=[KeyValue(key='robot', value=name)])
+        for name in ('/r1/followbot_sim', '/r2/followbot_sim')])
+    assert score_values(scores, '/r2/followbot_sim') == {'robot': '/r2/followbot_sim'}
+    assert score_values(scores, '/r3/followbot_sim') is None
+    assert score_values(scores) == {'robot': '/r1/followbot_sim'}

@@ -51,21 +51,59 @@ def test_environment_gets_the_profile_when_none_is_chosen(chosen):
     if chosen is not None:
         environment[transport.FASTDDS_PROFILE_VARIABLE] = chosen
     with_profile, in_force = transport.environment_with_profile(environment)
-    assert in_force == str(transport.fastdds_profile_path())
-    assert with_profile == {'PATH': '/usr/bin', transport.FASTDDS_PROFILE_VARIABLE: in_force}
+    path = str(transport.fastdds_profile_path())
+    assert in_force == f'profile {path}'
+    assert with_profile == {'PATH': '/usr/bin', transport.FASTDDS_PROFILE_VARIABLE: path}
     assert environment.get(transport.FASTDDS_PROFILE_VARIABLE) == chosen
 
 
 def test_a_profile_the_user_chose_is_kept():
     environment = {transport.FASTDDS_PROFILE_VARIABLE: '/etc/my_fastdds.xml'}
     with_profile, in_force = transport.environment_with_profile(environment)
-    assert in_force == '/etc/my_fastdds.xml'
+    assert in_force == 'configuration of yours, FASTRTPS_DEFAULT_PROFILES_FILE=/etc/my_fastdds.xml'
     assert with_profile == environment
 
 
-def test_environment_without_profile_uses_fastdds_defaults():
+def test_environment_without_profile_asks_for_fastdds_defaults():
     environment = {'PATH': '/usr/bin', transport.FASTDDS_PROFILE_VARIABLE: '/x.xml'}
-    assert transport.environment_without_profile(environment) == {'PATH': '/usr/bin'}
+    assert transport.environment_without_profile(environment) == {
+        'PATH': '/usr/bin', 'FASTDDS_BUILTIN_TRANSPORTS': 'DEFAULT'}
+
+
+@pytest.mark.parametrize('variable', transport.USER_CONFIGURATION_VARIABLES)
+def test_any_fastdds_variable_of_the_users_is_their_configuration(variable, tmp_path):
+    assert transport.users_fastdds_configuration({variable: 'X'}, tmp_path) == f'{variable}=X'
+
+
+@pytest.mark.parametrize('name', transport.WORKING_DIRECTORY_PROFILES)
+def test_a_profile_file_in_the_working_directory_is_the_users(name, tmp_path):
+    (tmp_path / name).write_text('<dds/>')
+    assert transport.users_fastdds_configuration({}, tmp_path) == str(tmp_path / name)
+
+
+def test_another_middleware_needs_no_fastdds_profile(tmp_path):
+    environment = {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}
+    assert transport.users_fastdds_configuration(environment, tmp_path) == transport.NOT_FASTDDS
+
+
+def test_nodes_take_the_package_profile_when_the_user_has_none(monkeypatch, tmp_path):
+    for variable in (*transport.USER_CONFIGURATION_VARIABLES, 'RMW_IMPLEMENTATION'):
+        monkeypatch.delenv(variable, raising=False)
+    monkeypatch.chdir(tmp_path)
+    line = transport.use_package_profile()
+    path = str(transport.fastdds_profile_path())
+    assert transport.os.environ[transport.FASTDDS_PROFILE_VARIABLE] == path
+    assert line.startswith(f"Fast DDS configuration: followbot's profile {path}")
+    assert '\n' not in line
+
+
+def test_nodes_keep_the_users_fastdds_configuration(monkeypatch, tmp_path):
+    monkeypatch.setenv('FASTDDS_BUILTIN_TRANSPORTS', 'LARGE_DATA')
+    monkeypatch.delenv(transport.FASTDDS_PROFILE_VARIABLE, raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert transport.use_package_profile() == (
+        'Fast DDS configuration: yours (FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA).')
+    assert transport.FASTDDS_PROFILE_VARIABLE not in transport.os.environ
 
 
 def test_keep_large_buffers_tunes_glibc(monkeypatch):
