@@ -21,7 +21,7 @@ from conftest import (child_environment, kill_leftovers, PACKAGE_DIR, run_domain
                       stop_process)
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.transport import FASTDDS_PROFILE_VARIABLE
-from followbot_sim import messages
+from followbot_sim.score import score_values
 from geometry_msgs.msg import Twist
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -29,7 +29,7 @@ from rclpy.node import Node
 
 PACKAGE = 'followbot'
 # What ros2 run finds in lib/followbot: the console scripts of setup.py.
-EXECUTABLES = ('follower', 'sim', 'followbot', 'scorecard', 'benchmark')
+EXECUTABLES = ('follower', 'sim', 'followbot', 'scorecard', 'benchmark', 'calibrate')
 # Installed data: share/followbot/<folder> holds the checkout's files matching these patterns.
 INSTALLED_DATA = {'models': ('*.xml',), 'config': ('*.yaml', '*.xml')}
 UNDER_COLCON_TEST = 'COLCON' in os.environ
@@ -190,7 +190,7 @@ def test_installed_nodes_follow_the_line_under_a_namespace_with_remaps(
     commands, scores = [], []
     client.create_subscription(Twist, f'{NAMESPACE}/{TELEOP_TOPIC}', commands.append, 100)
     client.create_subscription(DiagnosticArray, '/diagnostics',
-                               lambda msg: scores.append(messages.score_values(msg)), 10)
+                               lambda msg: scores.append(score_values(msg)), 10)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(client)
     try:

@@ -23,9 +23,13 @@ TEST_DIR = 'test'
 LIBRARY_KEYS = {
     'catkin_pkg': 'python3-catkin-pkg-modules',
     'cv2': 'python3-opencv',
+    'hypothesis': 'python3-hypothesis',
+    'mcap': 'mcap-ros2-support',
+    'mcap_ros2': 'mcap-ros2-support',
     'mujoco': 'python3-mujoco-pip',
     'numpy': 'python3-numpy',
     'pytest': 'python3-pytest',
+    'rosbags': 'python3-rosbags-pip',
     'yaml': 'python3-yaml',
 }
 # Test dependencies no import shows, because the tests run them as commands.
@@ -37,16 +41,20 @@ TOOL_KEYS = {
 # PyPI project (requirements.txt, the no-ROS route) of each non-ROS exec_depend. A ROS package
 # key such as sensor_msgs is the community wheel ros-sensor-msgs.
 LIBRARY_REQUIREMENTS = {
+    'mcap-ros2-support': 'mcap-ros2-support',
     'python3-mujoco-pip': 'mujoco',
     'python3-numpy': 'numpy',
     'python3-opencv': 'opencv-python-headless',
     'python3-yaml': 'pyyaml',
 }
+# PyPI projects requirements.txt pins beside an exec_depend's own, because that package brings
+# them: {project: rosdep key}.
+PINNED_WITH = {'mcap': 'mcap-ros2-support'}
 # A ROS package's name (REP-144); other rosdep keys (python3-..., lib...-dev) are system keys.
 ROS_PACKAGE_NAME = r'[a-z][a-z0-9_]*'
 # exec_depends with no wheel on PyPI: the no-ROS route runs without them.
 NOT_ON_PYPI = {
-    'tf2_msgs': 'without it the simulator says so once and publishes no /tf',
+    'tf2_msgs': 'make setup builds config/tf2_msgs, a TFMessage-only stand-in, into the venv',
 }
 # The setup() keywords that must say what package.xml says.
 SHARED_METADATA = ('name', 'version', 'license', 'maintainer', 'maintainer_email')
@@ -278,7 +286,9 @@ def test_requirements_txt_pins_every_exec_depend_on_pypi(package):
 
 
 def test_requirements_txt_pins_nothing_package_xml_lacks(package):
-    expected = {requirement_name(dependency.name) for dependency in package.exec_depends}
+    exec_keys = {dependency.name for dependency in package.exec_depends}
+    expected = {requirement_name(key) for key in exec_keys}
+    expected |= {project for project, key in PINNED_WITH.items() if key in exec_keys}
     extra = [f'requirements.txt lists {name}, which stands for no <exec_depend> of package.xml'
              for name in sorted(requirement_names(REQUIREMENTS_TXT) - expected)]
     assert extra == [], '\n'.join(extra)
