@@ -1,34 +1,43 @@
 """
-Find a yellow line in horizontal bands of a camera image.
+Find the line in horizontal bands of a camera image, and say how sure that is.
 
-The algorithm of the Follow-bot in "Programming Robots with ROS" (ch. 12), made right: only
-the bands of rows are looked at (not the whole frame), the hue bounds use OpenCV's 0-179 hue
-scale, the value bounds accept both shaded and fully lit yellow, band rows are integers, and
-the centroid comes from the binary mask's image moments.
+The algorithm of the Follow-bot in "Programming Robots with ROS" (ch. 12), made to hold on real
+camera frames. Only bands of rows are read (not the whole frame). In each band the line's
+pixels form stripes; which stripe, if any, is the line is decided with what the follower knows:
 
-A pixel is the line's exactly when ``cv2.inRange`` takes its ``cv2.cvtColor`` BGR-to-HSV
-colour to be within the configured bounds. Converting every band pixel to HSV would cost more
-than all the rest, so for bounds shaped like the defaults (a hue range centred on yellow, no
-upper saturation or value bound) a few whole-array operations on the blue, green and red
-planes decide instead: with g_r = max(red, green), the saturation and value bounds become
-g_r > floor(c * blue) and g_r >= value_min, and the hue bound |red - green| <= k * (g_r -
-blue). This rule is checked against cvtColor and inRange on all 16.7 million 8-bit colours
-the first time a set of bounds is used (a tenth of a second; the verdict is cached), and is
-used only if it never contradicts them. OpenCV's fixed-point hue rounds a few colours right at
-the hue bound either way, so the rule leaves colours within a fraction of a level of that
-bound undecided; frames with such pixels (none in clean renders, some with camera noise) get
-those pixels from cvtColor itself. Bounds of other shapes take cvtColor and inRange on every
-band pixel. Either way the mask is the HSV pipeline's, pixel for pixel.
+- **Where the floor is.** With the camera's geometry (its camera_info and mounting) a band at
+  or above the horizon sees no floor, so no line: it is not searched. Below it, the line of
+  ``line_width_m`` must look a known number of pixels wide; a stripe far wider or narrower (a
+  whole floor passing a colour bound under a cast, a speck of noise) is not the line. A
+  diagonal stripe is measured across its slope, so a line running across the view still fits.
+- **What colour the line is, relative to its floor.** A first, fast look applies the colour
+  preset's fixed HSV bounds exactly (see :mod:`followbot.colour_rule`). When that leaves any
+  doubt (a band below the horizon with no stripe, several stripes, a stripe of the wrong width)
+  the bands are judged again relative to their floor, white-balanced and exposure-free (see
+  :mod:`followbot.line_colour`), which finds pale and far tape and ignores colour casts.
+- **That the line is one line.** The stripes of the bands, put on the floor, must form a
+  smooth path: from one band to the next the line may turn, but not jump sideways by more than
+  ``max_stripe_jump_m``, nor zigzag. Among all chains of stripes through the bands, the one
+  with the most well-coloured, well-sized stripes and the smoothest path is taken (dynamic
+  programming over the bands). A stripe that stood in a band in the previous frame confidently
+  must be near where it was (``max_stripe_jump_m`` on the floor).
+- **How sure.** The detection's confidence is the share of the searchable bands that its
+  chain covers, each weighed by how well its stripe's width and colour fit, lowered when
+  another chain of similar strength competes. A lone yellow object, a half-matching stripe,
+  two candidate lines: all give low confidence, and the controller slows down or stops.
+
+Without camera geometry (no camera_info yet) the bands are all searched, widths are bounded by
+a share of the image, and jumps are measured in the image.
 """
 
 from dataclasses import dataclass
-import functools
 import math
 from typing import NamedTuple
 
 import cv2
-from followbot.image_conversion import check_array
-from followbot.image_conversion import to_bgr
+from followbot import line_colour
+from followbot.colour_rule import colour_rule, RULE_YES
+from followbot.image_conversion import check_array, ImageConversionError, to_bgr
 import numpy as np
 
 # OpenCV stores 8-bit hue as degrees / 2, so it ranges over 0..179.
@@ -37,6 +46,7 @@ OPENCV_HUE_MAX = 179
 HSV_CHANNEL_MAX = 255
 
 DEBUG_BAND_COLOUR_BGR = (0, 255, 0)
+DEBUG_UNSEARCHED_BAND_COLOUR_BGR = (128, 128, 128)
 DEBUG_CENTRE_LINE_COLOUR_BGR = (255, 0, 0)
 DEBUG_CENTROID_COLOUR_BGR = (0, 0, 255)
 DEBUG_TEXT_COLOUR_BGR = (0, 0, 255)
@@ -60,22 +70,6 @@ _PIXEL_LAYOUT_BY_ENCODING = {
 _HSV_CONVERSION_BY_BLUE_INDEX = {0: cv2.COLOR_BGR2HSV, 2: cv2.COLOR_RGB2HSV}
 # mono8 has one channel: no colour, and no channel axis in its arrays.
 _GREY_CHANNELS = 1
-
-# Pure yellow in OpenCV hue units; the fast rule needs a hue range centred on it.
-_YELLOW_HUE = 30
-# OpenCV hue units per hue sector (60 degrees) between two primary colours.
-_HUE_SECTOR = 30
-# Widths, in levels of |red - green|, of the band the fast rule leaves undecided about its
-# hue bound, narrowest first: OpenCV's fixed-point hue strays from the exact bound by up to a
-# quarter level for the default bounds, a little more for others.
-_HUE_UNDECIDED_LEVELS = (0.26, 0.5, 1.0)
-# The rule's three verdicts in its 8-bit output: no, undecided (anything between), yes.
-_RULE_NO = 0
-_RULE_YES = 255
-# Half an 8-bit level: cv2 rounds to the nearest integer when it saturates to uint8.
-_HALF_LEVEL = 0.5
-# Colours are checked against cvtColor in blocks of this many blue levels (16 MB of scratch).
-_CHECK_BLUE_LEVELS_PER_BLOCK = 16
 # Levels of an 8-bit channel.
 _LEVELS = 256
 # Columns summed at once as the bytes of one uint64 (sums of at most 255 cannot carry).
@@ -84,29 +78,114 @@ _LANES = 8
 # of noise) are cut down to those large enough, and searched, with whole-array operations.
 _STRIPES_LISTED = 32
 
+# A band is searched when the line there looks at least this wide: nearer the horizon it is
+# a few pixels of blur.
+MIN_SEARCH_WIDTH_PX = 2.0
+# A stripe is the line when its width across its slope is within these multiples of the
+# line's expected width (a far dash seen at a slant, a worn edge, blur).
+MIN_WIDTH_RATIO = 0.55
+MAX_WIDTH_RATIO = 2.6
+# Width fit: the quality falls to exp(-1/2) at a width this many times too wide or narrow.
+WIDTH_TOLERANCE_RATIO = 2.0
+LOG_WIDTH_TOLERANCE = math.log(WIDTH_TOLERANCE_RATIO)
+# A stripe must cover at least this share of a band of the line's expected width.
+MIN_AREA_SHARE = 0.25
+# A stripe wider than this many expected widths is measured across its slope (row by row).
+SLANT_CHECK_RATIO = 1.5
+# Without camera geometry: a stripe wider than this share of the image is not the line, and
+# a jump between bands (or frames) is measured as a share of the image width.
+NO_GEOMETRY_MAX_WIDTH_SHARE = 0.6
+NO_GEOMETRY_JUMP_SHARE = 0.2
+# A stripe wider than MAX_WIDTH_RATIO may be the line running across the view (a corner
+# ahead, a crossing): it then fills this share of the band over its run, the line's thickness
+# in rows is at least ALONG_BAND_MIN_ROWS_SHARE of the band, and its width fits this well.
+ALONG_BAND_FILL = 0.6
+ALONG_BAND_MIN_ROWS_SHARE = 0.75
+ALONG_BAND_QUALITY = 0.5
+# How well a stripe narrower than the line fits when it touches the image's edge.
+EDGE_QUALITY = 0.7
+# Colour evidence: a stripe whose pixels are on average this many times past their threshold
+# counts as fully coloured; a first-look stripe (fixed bounds) always does.
+GOOD_STRENGTH = 2.0
+# A stripe's fill of its bounding box (solid tape ~1, scattered specks much less).
+GOOD_FILL = 0.6
+# Quality below which a stripe is too doubtful to take part.
+MIN_QUALITY = 0.15
+# From one band's point of the line to the next, the line may turn at most this much (per
+# link), and a first link may leave the robot's heading by at most FIRST_LINK_TURN.
+MAX_LINK_TURN_RAD = math.radians(50.0)
+FIRST_LINK_TURN_RAD = math.radians(75.0)
+TAN_MAX_LINK_TURN = math.tan(MAX_LINK_TURN_RAD)
+TAN_FIRST_LINK_TURN = math.tan(FIRST_LINK_TURN_RAD)
+# Cost of a turn at the limit, against 1 per stripe of perfect quality.
+TURN_COST = 0.3
+# Cost of each band a chain skips (a gap between dashes, or a missed stripe).
+GAP_COST = 0.05
+# Only this many of a band's best stripes take part in the chain search.
+MAX_CANDIDATES_PER_BAND = 5
+# A previous detection at least this confident fixes where each band's stripe may be: within
+# the jump limit of where it was, a stripe a whole limit away losing this share of its quality.
+TRACKING_CONFIDENCE = 0.5
+TRACKING_WEIGHT = 0.5
+# A first look is accepted without the second when its confidence reaches this and each of
+# its stripes' quality reaches CLEAN_QUALITY.
+CLEAN_CONFIDENCE = 0.8
+CLEAN_QUALITY = 0.8
+# Support of a link between two bands' stripes: image samples every LINK_SAMPLE_SPACING_PX
+# rows (at least MIN_LINK_SAMPLES, at most MAX_LINK_SAMPLES), each across the line's width at
+# these offsets (in half widths); a link with none of FULL_LINK_SUPPORT costs this much.
+LINK_SAMPLE_SPACING_PX = 4.0
+MIN_LINK_SAMPLES = 3
+MAX_LINK_SAMPLES = 16
+LINK_OFFSETS = np.array([-0.5, 0.0, 0.5])
+LINK_NO_GEOMETRY_HALF_WIDTH_PX = 4.0
+FULL_LINK_SUPPORT = 0.6
+# How deep beyond the band the turn of a hairpin may lie, as shares of half the distance
+# between its arms (the arc's depth depends on the bend's shape and the camera's view).
+HAIRPIN_DEPTH_SHARES = (0.15, 0.3, 0.5, 0.75, 1.0)
+# Where the floor must show beside such an arc, in half widths of the line either side (a
+# bright patch or a wall joins any two stripes; only a thin line joins them along an arc).
+BESIDE_LINE_OFFSETS = np.array([-3.0, 3.0])
+UNSUPPORTED_LINK_COST = 1.0
+# Each band farther from the robot counts this much less in the chain search: the line the
+# robot follows comes from near it, and far stripes are more often something else.
+NEAR_BAND_WEIGHT = 0.7
+# A tie-breaker, less than any stripe's worth: chains starting nearer the robot's path win.
+CENTRE_PREFERENCE = 0.05
+# Fewer points than this are put on the floor one by one (arrays cost more for a few).
+FEW_POINTS = 16
+# A rival chain as strong as the chosen one takes this share of the confidence.
+RIVAL_WEIGHT = 0.8
+
 
 @dataclass(frozen=True)
 class DetectorConfig:
     """
-    Thresholds and band geometry of the line detector.
+    The line's colour and width, the bands searched, and the limits of a jump.
 
-    Hue is in OpenCV units (0-179); saturation and value in 0-255. The hue range does not
-    wrap around 0, which yellow (hue ~29) does not need. The defaults accept the course's
-    yellow RGB(255, 246, 0) from fully lit down to deep shade (value ~60) and reject the
-    unsaturated grey floor.
+    ``line_colour`` is a preset of :mod:`followbot.line_colour` (``yellow``, ``white``,
+    ``black``), or ``custom``: then the HSV bounds (hue in OpenCV units 0-179, saturation and
+    value 0-255; the hue range does not wrap around 0) are the line's colour. The presets'
+    fixed bounds are in ``line_colour.PRESET_HSV_BOUNDS``; the HSV fields default to the
+    yellow preset's.
 
     The detector looks in ``band_count`` bands of ``band_height_px`` rows: the nearest is
     centred on ``band_center_fraction`` of the image height, each further one
     ``band_spacing_fraction`` of the height above the previous. With the default 30 degree
     camera tilt the six default bands see the floor from ~0.34 m to ~0.87 m ahead of the
     robot: where the line goes, not only where it is (a single band, as in the book, is
-    ``band_count`` 1). A band takes a stripe only within ``max_stripe_jump_fraction`` of the
-    image width of where it expects the line. Bands are 4 rows tall: on every built-in course
-    the follower laps exactly as with 12 (the scorecard's figures are equal), and a frame costs
-    a third less; only heavy camera noise (24 levels) shows, in a max cross-track error of
-    2.1 cm instead of 0.9 cm. ``min_area_px`` scales with the height (100 pixels for 12 rows).
+    ``band_count`` 1). Bands are 4 rows tall: on every built-in course the follower laps
+    exactly as with 12, and a frame costs a third less.
+
+    ``line_width_m`` is the tape's width on the floor; ``max_stripe_jump_m`` how far, on the
+    floor, a band's stripe may lie sideways from where the line leads (or from where it was in
+    the previous frame); ``min_area_px`` the fewest pixels a stripe needs, whatever the
+    geometry says (the geometry asks for more where the line looks wide). A detection less
+    confident than ``min_confidence`` reports no line at all: the follower then drives on its
+    memory of the line, stops or searches, instead of steering by a guess.
     """
 
+    line_colour: str = 'yellow'
     hue_min: int = 20
     hue_max: int = 40
     saturation_min: int = 100
@@ -117,11 +196,16 @@ class DetectorConfig:
     band_center_fraction: float = 0.95
     band_spacing_fraction: float = 0.125
     band_height_px: int = 4
-    min_area_px: int = 33
-    max_stripe_jump_fraction: float = 0.2
+    min_area_px: int = 4
+    line_width_m: float = 0.19
+    max_stripe_jump_m: float = 0.15
+    min_confidence: float = 0.1
 
     def __post_init__(self):
         """Reject thresholds and band geometry that cannot describe a detection."""
+        if self.line_colour not in line_colour.LINE_COLOURS:
+            raise ValueError(f'line_colour must be one of '
+                             f'{", ".join(line_colour.LINE_COLOURS)}, got {self.line_colour!r}.')
         channel_ranges = (
             ('hue', self.hue_min, self.hue_max, OPENCV_HUE_MAX),
             ('saturation', self.saturation_min, self.saturation_max, HSV_CHANNEL_MAX),
@@ -144,10 +228,17 @@ class DetectorConfig:
             raise ValueError(
                 'band_spacing_fraction must be at least 0 and less than 1, got '
                 f'{self.band_spacing_fraction}.')
-        if not 0.0 < self.max_stripe_jump_fraction <= 1.0:
-            raise ValueError(
-                'max_stripe_jump_fraction must be above 0 and at most 1, got '
-                f'{self.max_stripe_jump_fraction}.')
+        for name in ('line_width_m', 'max_stripe_jump_m'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f'{name} must be a number, got {value!r}.')
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f'{name} must be positive and finite, got {value}.')
+        if isinstance(self.min_confidence, bool) or not isinstance(self.min_confidence,
+                                                                   (int, float)):
+            raise TypeError(f'min_confidence must be a number, got {self.min_confidence!r}.')
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ValueError(f'min_confidence must be in [0, 1], got {self.min_confidence}.')
         for name in ('band_count', 'band_height_px', 'min_area_px'):
             value = getattr(self, name)
             _require_int(name, value)
@@ -167,8 +258,10 @@ class BandDetection(NamedTuple):
 
     Coordinates are in pixels of the full image, x to the right and y down; the centroid is
     NaN when the band did not see the line. ``area_px`` counts the chosen stripe's pixels
-    (or, when nothing was found, all matching pixels of the band, too few to count). An
-    immutable record like a frozen dataclass, made six times a frame at a seventh of the cost.
+    (or, when nothing was found, all matching pixels of the band). ``searched`` is False for a
+    band at or above the horizon, where no line can be. ``quality`` (0-1) says how well the
+    stripe's width and colour fit the line's. An immutable record like a frozen dataclass,
+    made six times a frame at a seventh of the cost.
     """
 
     found: bool
@@ -177,6 +270,8 @@ class BandDetection(NamedTuple):
     area_px: int
     top_px: int
     bottom_px: int
+    searched: bool = True
+    quality: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -186,12 +281,14 @@ class Detection:
 
     ``error`` is the nearest seen stripe's horizontal offset from the image centre normalised
     to [-1, 1], positive when the line is right of centre: (centroid_x_px - w/2) / (w/2); 0.0
-    when no band saw the line. ``confidence`` is the fraction of bands that saw it.
+    when no band saw the line. ``confidence`` (0-1) is how sure the detector is that what it
+    reports is the line: see the module docstring.
     """
 
     bands: tuple
     image_width_px: int
     image_height_px: int
+    confidence: float = 0.0
 
     @classmethod
     def nothing_seen(cls, image_width_px=0, image_height_px=0):
@@ -229,13 +326,6 @@ class Detection:
         return (nearest.centroid_x_px - half_width_px) / half_width_px
 
     @property
-    def confidence(self):
-        """Return the fraction of bands that saw the line, 0 to 1."""
-        if not self.bands:
-            return 0.0
-        return len(self.seen_bands) / len(self.bands)
-
-    @property
     def area_px(self):
         """Return the line pixels counted in all bands."""
         return sum(band.area_px for band in self.seen_bands)
@@ -266,126 +356,61 @@ def band_rows(image_height_px, config):
 
 def hsv_bounds(config):
     """
-    Return the line's colour bounds as OpenCV takes them.
+    Return the fixed colour bounds of the detector's first look, as OpenCV takes them.
 
     :param config: a DetectorConfig.
-    :return: (lower, upper) HSV uint8 arrays for ``cv2.inRange``.
+    :return: (lower, upper) HSV uint8 arrays for ``cv2.inRange``: the preset's, or for
+        ``custom`` the configured ones.
     """
-    lower = np.array((config.hue_min, config.saturation_min, config.value_min), np.uint8)
-    upper = np.array((config.hue_max, config.saturation_max, config.value_max), np.uint8)
-    return lower, upper
+    if config.line_colour == 'custom':
+        low = (config.hue_min, config.saturation_min, config.value_min)
+        high = (config.hue_max, config.saturation_max, config.value_max)
+    else:
+        low, high = line_colour.PRESET_HSV_BOUNDS[config.line_colour]
+    return np.array(low, np.uint8), np.array(high, np.uint8)
+
+
+class _Quality(float):
+    """A stripe's quality (0 to 1), which knows whether the line runs along the band."""
+
+    def __new__(cls, value, along_band=False):
+        """Make the quality; ``along_band`` marks a line across the view."""
+        quality = super().__new__(cls, value)
+        quality.along_band = along_band
+        return quality
+
+
+class _Candidate(NamedTuple):
+    """A stripe that may be the line: where it is, how well it fits, and its floor point."""
+
+    band: int
+    x_px: float
+    y_px: float
+    area_px: int
+    quality: float
+    point: tuple
 
 
 @dataclass(frozen=True)
-class _ColourRule:
-    """
-    Decide whether colours are the line's from their blue, green and red planes.
+class _BandPlan:
+    """What the geometry says of each band: searched, the line's width there, its floor."""
 
-    With g_r = max(red, green), a colour is the line's when g_r >= ``value_min``, g_r >
-    floor(``value_per_blue`` * blue) (the saturation bound, blue being the smallest channel)
-    and |red - green| <= ``hue_slope`` * (g_r - blue) (the hue bound, symmetric about yellow).
-    The hue comparison answers yes or no only ``hue_undecided_levels`` or more away from its
-    bound, and leaves the colour undecided nearer.
-    """
+    searched: tuple
+    expected_width_px: tuple
+    across_rows_px: tuple
+    min_area_px: tuple
+    # Where a stripe at column x of a band stands, to within its few rows: (forward[band],
+    # left_per_px[band] * (x - centre_px)) on the floor, or in the image without geometry;
+    # None for a camera with lens distortion, whose points are projected one by one.
+    forward: tuple
+    left_per_px: tuple
+    centre_px: float
+    jump: float
+    has_geometry: bool
 
-    value_per_blue: float
-    hue_slope: float
-    value_min: int
-    hue_undecided_levels: float
-
-    def classify(self, blue, green, red, spare, out):
-        """
-        Write the verdict on each pixel of three equal uint8 planes, overwriting them.
-
-        :param blue: the blue plane; green and red likewise. All three are overwritten.
-        :param spare: a uint8 scratch array of the planes' shape.
-        :param out: where the verdicts go: any uint8 array or view the planes reshape to.
-            Each is _RULE_NO, _RULE_YES or, undecided, anything between.
-        """
-        np.maximum(red, green, out=spare)
-        cv2.absdiff(red, green, dst=red)
-        cv2.subtract(spare, blue, dst=green)
-        # slope * chroma - |red - green|, scaled so that the undecided margin or more gives
-        # _RULE_YES, and minus the margin or less _RULE_NO.
-        gain = (_RULE_YES - _HALF_LEVEL) / (2 * self.hue_undecided_levels)
-        cv2.addWeighted(green, gain * self.hue_slope, red, -gain, _RULE_YES / 2.0, dst=green)
-        # floor(value_per_blue * blue): the largest max(red, green) still too unsaturated.
-        cv2.convertScaleAbs(blue, dst=blue, alpha=self.value_per_blue, beta=-_HALF_LEVEL)
-        cv2.threshold(spare, self.value_min - 1, _RULE_YES, cv2.THRESH_TOZERO, dst=spare)
-        cv2.compare(spare, blue, cv2.CMP_GT, dst=blue)
-        np.minimum(green.reshape(out.shape), blue.reshape(out.shape), out=out)
-
-
-@functools.lru_cache(maxsize=None)
-def _colour_rule(hue_min, hue_max, saturation_min, saturation_max, value_min, value_max):
-    """
-    Return the _ColourRule equal to cvtColor and inRange for these bounds, or None.
-
-    :return: None when the bounds are not shaped like the rule (a hue range centred on yellow
-        within the red-green sector, no upper saturation or value bound, a lower saturation
-        bound) or no rule with an undecided margin of at most a level agrees with OpenCV on
-        every colour.
-    """
-    centred_hue = hue_min + hue_max == 2 * _YELLOW_HUE and 0 < hue_min <= _YELLOW_HUE
-    if not (centred_hue and saturation_min > 0 and saturation_max == HSV_CHANNEL_MAX
-            and value_max == HSV_CHANNEL_MAX):
-        return None
-    ratio = _saturation_ratio(saturation_min, value_min)
-    if ratio is None:
-        return None
-    lower = np.array((hue_min, saturation_min, value_min), np.uint8)
-    upper = np.array((hue_max, saturation_max, value_max), np.uint8)
-    for undecided_levels in _HUE_UNDECIDED_LEVELS:
-        rule = _ColourRule(value_per_blue=1.0 / (1.0 - ratio),
-                           hue_slope=(_HUE_SECTOR + _HALF_LEVEL - hue_min) / _HUE_SECTOR,
-                           value_min=value_min, hue_undecided_levels=undecided_levels)
-        if _rule_matches_opencv(rule, lower, upper):
-            return rule
-    return None
-
-
-def _saturation_ratio(saturation_min, value_min):
-    """
-    Return c such that OpenCV's saturation >= saturation_min exactly when chroma >= c * value.
-
-    :return: c, strictly inside the interval every value from value_min up allows, or None
-        when no single ratio describes the bound.
-    """
-    levels = np.arange(_LEVELS)
-    value, chroma = np.meshgrid(levels, levels, indexing='ij')
-    value, chroma = value[chroma <= value], chroma[chroma <= value]
-    # A grey-to-red ramp: blue = green = value - chroma, red = value.
-    ramp = np.stack((value - chroma, value - chroma, value), axis=-1).astype(np.uint8)
-    saturation = cv2.cvtColor(ramp[np.newaxis], cv2.COLOR_BGR2HSV)[0, :, 1]
-    passes = saturation >= saturation_min
-    above = value >= max(value_min, 1)
-    low = max((chroma[~passes & above] / value[~passes & above]).max(initial=0.0), 0.0)
-    high = (chroma[passes & above] / value[passes & above]).min(initial=1.0)
-    if not low < high:
-        return None
-    return (low + high) / 2.0
-
-
-def _rule_matches_opencv(rule, lower, upper):
-    """Return whether the rule never contradicts cvtColor and inRange on any 8-bit colour."""
-    levels = np.arange(_LEVELS, dtype=np.uint8)
-    bgr = np.empty((1, _CHECK_BLUE_LEVELS_PER_BLOCK * _LEVELS * _LEVELS, 3), np.uint8)
-    bgr[0, :, 1] = np.tile(np.repeat(levels, _LEVELS), _CHECK_BLUE_LEVELS_PER_BLOCK)
-    bgr[0, :, 2] = np.tile(levels, _LEVELS * _CHECK_BLUE_LEVELS_PER_BLOCK)
-    planes = [np.empty(bgr.shape[:2], np.uint8) for _ in range(5)]
-    verdict = planes[4]
-    expected = np.empty(bgr.shape[:2], np.uint8)
-    for first_blue in range(0, _LEVELS, _CHECK_BLUE_LEVELS_PER_BLOCK):
-        bgr[0, :, 0] = np.repeat(levels[first_blue:first_blue + _CHECK_BLUE_LEVELS_PER_BLOCK],
-                                 _LEVELS * _LEVELS)
-        cv2.split(bgr, planes[:3])
-        rule.classify(*planes)
-        cv2.inRange(cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV), lower, upper, dst=expected)
-        wrong_yes = (verdict == _RULE_YES) & (expected == 0)
-        wrong_no = (verdict == _RULE_NO) & (expected != 0)
-        if wrong_yes.any() or wrong_no.any():
-            return False
-    return True
+    def point(self, band: int, x_px: float) -> tuple:
+        """Return where a stripe's centroid at a column of a band stands (see the fields)."""
+        return self.forward[band], self.left_per_px[band] * (x_px - self.centre_px)
 
 
 class _BandLayout:
@@ -487,40 +512,40 @@ def _sum_dtype(largest):
 
 class LineDetector:
     """
-    Find the line's stripe in each band of rows of each image.
+    Find the line's stripe in each band of rows of each image, and how sure that is.
 
     Only the bands' rows are read: viewed in place when the image is contiguous and the bands
-    equally tall and spaced, else gathered into a buffer. Each pixel is classified as
-    described in the module docstring, for all bands at once, and one reduction gives every
-    band's per-column counts of line pixels and of their rows. In each band the matching
-    columns form stripes; the detector takes the stripe nearest to where it expects the line:
-    where that band saw it in the previous frame, else where the next nearer band that saw it
-    in this frame did. A stripe farther than ``max_stripe_jump_fraction`` of the width from
-    that is not the line (a yellow patch beside it, the other leg of a hairpin, the other
-    branch at a crossing), so the band saw nothing. With no expectation at all (the line not
-    seen before) the stripe nearest the image centre is taken. Stripes smaller than
-    ``min_area_px`` are noise. A stripe's centroid is its pixels' mean column and row. The
-    buffers are made once per image size and reused.
+    equally tall and spaced, else gathered into a buffer. The first look classifies each pixel
+    with the preset's fixed HSV bounds, for all bands at once, and one reduction gives every
+    band's per-column counts of line pixels and of their rows; in each band the matching
+    columns form stripes. The stripes that could be the line (see the module docstring) are
+    chained through the bands; when the first look leaves doubt, the second look judges the
+    bands' pixels against their floor and chains again. The buffers are made once per image
+    size and reused.
     """
 
     def __init__(self, config=DetectorConfig()):
         """
         Make a detector that has not seen the line yet.
 
-        The first detector for a set of thresholds checks the fast colour rule against
+        The first detector for a set of fixed bounds checks the fast colour rule against
         OpenCV on every colour (a tenth of a second); later ones reuse that verdict.
 
-        :param config: thresholds and band geometry; the defaults suit the course.
+        :param config: colour, width, bands and limits; the defaults suit the simulated course.
         """
         self._config = config
         self._lower_hsv, self._upper_hsv = hsv_bounds(config)
-        self._rule = _colour_rule(config.hue_min, config.hue_max, config.saturation_min,
-                                  config.saturation_max, config.value_min, config.value_max)
+        self._rule = colour_rule(int(self._lower_hsv[0]), int(self._upper_hsv[0]),
+                                 int(self._lower_hsv[1]), int(self._upper_hsv[1]),
+                                 int(self._lower_hsv[2]), int(self._upper_hsv[2]))
         self._image_shape = None
         self._layout = None
         self._bands = []
-        self._previous_x_px = []
+        self._plans = {}
+        self._previous_points = []
+        self._previous_heading = None
         self._stacked_mask_current = False
+        self._strength = None
 
     @property
     def config(self):
@@ -540,7 +565,7 @@ class LineDetector:
             return None
         if not self._stacked_mask_current:
             for band_mask, stacked_rows in layout.stacked_bands:
-                cv2.threshold(band_mask, 0, _RULE_YES, cv2.THRESH_BINARY, dst=stacked_rows)
+                cv2.threshold(band_mask, 0, RULE_YES, cv2.THRESH_BINARY, dst=stacked_rows)
             self._stacked_mask_current = True
         return layout.stacked_mask
 
@@ -565,38 +590,407 @@ class LineDetector:
         return out
 
     def reset(self):
-        """Forget where the line was seen: the next image is searched from the centre."""
-        self._previous_x_px = [math.nan] * len(self._bands)
+        """Forget where the line was seen: the next image is searched without expectations."""
+        self._previous_points = [None] * len(self._bands)
+        self._previous_heading = None
 
-    def detect(self, image, encoding='bgr8'):
+    def detect(self, image, encoding='bgr8', geometry=None):
         """
         Find the line in the bands of an image.
 
-        :param image: a uint8 array in the given encoding, as from
-            image_conversion.image_to_array; it is only read.
-        :param encoding: one of image_conversion.SUPPORTED_ENCODINGS. A mono8 image has no
-            colour, so no line is ever found in it.
+        :param image: an array in the given encoding, as from image_conversion.image_to_array;
+            it is only read. Encodings other than the 8-bit BGR/RGB(A)/mono ones are converted
+            to BGR first.
+        :param encoding: the image's encoding.
+        :param geometry: the camera's ground_projection.CameraGeometry, or None when not known:
+            then every band is searched and widths and jumps are judged in the image.
         :return: a Detection with one BandDetection per band, nearest first.
         :raises image_conversion.ImageConversionError: if the image does not match the
-            encoding.
+            encoding, has no colour (depth), or is grey while the line's colour is not.
         """
         check_array(image, encoding)
         pixel_layout = _PIXEL_LAYOUT_BY_ENCODING.get(encoding)
         if pixel_layout is None:
-            to_bgr(image, encoding)  # raises: the encoding has no colour
+            image, encoding = to_bgr(image, encoding), 'bgr8'
+            pixel_layout = _PIXEL_LAYOUT_BY_ENCODING[encoding]
+        if (pixel_layout[0] == _GREY_CHANNELS
+                and self._config.line_colour in line_colour.CHROMATIC_COLOURS + ('custom',)):
+            raise ImageConversionError(
+                f'A {encoding} image shows no {self._config.line_colour} line: set '
+                'line_colour to white or black for a grey camera.')
         height, width = image.shape[:2]
         if self._image_shape != (height, width):
             self._prepare(height, width)
+        plan = self._plan(geometry)
         band_pixels = self._band_pixels(image, pixel_layout[0])
         self._classify(band_pixels, pixel_layout)
         self._stacked_mask_current = False
-        return self._choose(self._stripes(), width, height)
+        self._strength = None
+        detection = self._clean_detection(self._stripes(), plan, geometry, width, height)
+        if detection is not None:
+            return detection
+        self._look_image = (image, pixel_layout)
+        self._second_look(band_pixels, pixel_layout, plan)
+        # A column belongs to a stripe when most of the band's rows agree: specks of camera
+        # noise neither split the line nor join the floor to it.
+        stripes = self._stripes(max(1, self._layout.rows // 2))
+        chain, confidence = self._chain(self._candidates(stripes, plan, geometry), plan)
+        return self._detection(chain, confidence, plan, width, height)
 
     def _prepare(self, height, width):
         self._image_shape = (height, width)
         self._layout = _BandLayout(height, width, self._config)
         self._bands = self._layout.bands
+        self._plans = {}
         self.reset()
+
+    def _plan(self, geometry) -> _BandPlan:
+        """Return what the geometry says of each band (cached per geometry)."""
+        plan = self._plans.get(geometry)
+        if plan is not None:
+            return plan
+        config = self._config
+        width = self._image_shape[1]
+        heights = [bottom - top for top, bottom in self._bands]
+        if geometry is None:
+            count = len(self._bands)
+            height = self._image_shape[0]
+            plan = _BandPlan(searched=(True,) * count, expected_width_px=(None,) * count,
+                             across_rows_px=(None,) * count,
+                             min_area_px=(config.min_area_px,) * count,
+                             forward=tuple((height - (top + bottom - 1) / 2.0) / width
+                                           for top, bottom in self._bands),
+                             left_per_px=(-1.0 / width,) * count, centre_px=width / 2.0,
+                             jump=NO_GEOMETRY_JUMP_SHARE, has_geometry=False)
+        else:
+            centres = [(top + bottom - 1) / 2.0 for top, bottom in self._bands]
+            widths = [float(value) for value in
+                      geometry.line_width_px(centres, config.line_width_m)]
+            across = geometry.across_line_rows_px(centres, config.line_width_m)
+            plan = _BandPlan(
+                searched=tuple(value >= MIN_SEARCH_WIDTH_PX for value in widths),
+                expected_width_px=tuple(widths),
+                across_rows_px=tuple(float(value) for value in across),
+                min_area_px=tuple(max(config.min_area_px,
+                                      int(MIN_AREA_SHARE * value * rows))
+                                  for value, rows in zip(widths, heights)),
+                forward=tuple(geometry.floor_point(geometry.cx_px, centre)[0]
+                              for centre in centres),
+                left_per_px=tuple(geometry.floor_point(geometry.cx_px + 1.0, centre)[1]
+                                  for centre in centres),
+                centre_px=geometry.cx_px,
+                jump=config.max_stripe_jump_m, has_geometry=True)
+        self._plans = {geometry: plan}
+        return plan
+
+    def _second_look(self, band_pixels, pixel_layout, plan):
+        """Judge the bands' pixels against their floor; write the mask and the strength."""
+        layout = self._layout
+        channels, blue_index, red_index = pixel_layout
+        if channels == _GREY_CHANNELS:
+            pixels = band_pixels
+        else:
+            pixels = band_pixels[..., [blue_index, 1, red_index]]
+        count = len(self._bands)
+        # The plan counts bands nearest first; the buffers hold them top down.
+        on_floor = [count - 1 - index for index, searched in enumerate(plan.searched)
+                    if searched]
+        gains = line_colour.white_balance(pixels, on_floor)
+        bounds = (tuple(int(value) for value in self._lower_hsv),
+                  tuple(int(value) for value in self._upper_hsv))
+        mask, strength, self._floor_model = line_colour.classify(
+            self._config.line_colour, pixels, gains, layout.width, on_floor, bounds)
+        for index, first_padding_pixel in layout.padding:
+            mask[index, first_padding_pixel:] = 0
+        np.copyto(layout.mask, mask)
+        self._strength = strength * mask
+
+    def _candidates(self, stripes_by_band, plan, geometry):
+        """Return, per band nearest first, the stripes that may be the line, best first."""
+        layout = self._layout
+        rows_of = [bottom - top for top, bottom in self._bands]
+        strength_sums = None
+        if self._strength is not None:
+            count, rows, width = len(self._bands), layout.rows, layout.width
+            strength_sums = self._strength.reshape(count, rows, width).sum(axis=1)
+        found = []
+        for index, stripes in enumerate(stripes_by_band):
+            if stripes is None or not plan.searched[index]:
+                continue
+            top = self._bands[index][0]
+            rows = rows_of[index]
+            if isinstance(stripes, np.ndarray):
+                stripes = [tuple(column) for column in stripes.T.tolist()]
+            for start, end, area, x_moment, y_moment in stripes:
+                if area < plan.min_area_px[index]:
+                    continue
+                quality = self._stripe_quality(index, start, end, area, rows, plan,
+                                               strength_sums)
+                if quality < MIN_QUALITY:
+                    continue
+                y_px = top + y_moment / area
+                if quality.along_band:
+                    # The line runs through the band: where it enters and where it leaves are
+                    # the points that chain with the bands above and below.
+                    half_px = 0.5 * plan.expected_width_px[index]
+                    for x_px in (start + half_px, end - half_px):
+                        found.append((index, x_px, y_px, area, float(quality)))
+                    continue
+                found.append((index, start + (x_moment - start * area) / area, y_px, area,
+                              float(quality)))
+        if not found:
+            return [[] for _ in self._bands]
+        points = self._points([item[1] for item in found], [item[2] for item in found],
+                              geometry)
+        candidates = [[] for _ in self._bands]
+        for (index, x_px, y_px, area, quality), point in zip(found, points):
+            previous = self._previous_points[index]
+            if previous is not None:
+                moved = math.dist(previous, point) / plan.jump
+                if moved > 1.0:
+                    continue
+                # Where the line was a frame ago it most likely is still.
+                quality *= 1.0 - TRACKING_WEIGHT * moved * moved
+            candidates[index].append(_Candidate(index, x_px, y_px, area, quality, point))
+        return [sorted(band, key=lambda candidate: -candidate.quality)[
+            :MAX_CANDIDATES_PER_BAND] for band in candidates]
+
+    def _points(self, x_px, y_px, geometry):
+        """Return the points candidates stand for: on the floor (metres), or in the image."""
+        if geometry is None:
+            height, width = self._image_shape
+            return [((height - y) / width, (width / 2.0 - x) / width)
+                    for x, y in zip(x_px, y_px)]
+        if len(x_px) < FEW_POINTS:
+            return [geometry.floor_point(x, y) for x, y in zip(x_px, y_px)]
+        forward_m, left_m = geometry.pixels_to_floor(x_px, y_px)
+        return list(zip(forward_m.tolist(), left_m.tolist()))
+
+    def _stripe_quality(self, index, start, end, area, rows, plan, strength_sums):
+        """
+        Return how well a stripe fits the line (0 to 1; 0 if it cannot be the line).
+
+        :return: a _Quality: the number, and whether the stripe is the line running along
+            the band (across the view) rather than through it.
+        """
+        extent = end - start
+        fill = area / (extent * rows)
+        image_width = self._image_shape[1]
+        at_edge = start == 0 or end == image_width
+        expected = plan.expected_width_px[index]
+        along_band = False
+        if expected is None:
+            if extent > NO_GEOMETRY_MAX_WIDTH_SHARE * image_width:
+                return _Quality(0.0)
+            width_quality = 1.0
+        else:
+            across = extent
+            if extent > SLANT_CHECK_RATIO * expected:
+                across, fill = self._slanted_width(index, start, end, area)
+            ratio = across / expected
+            if ratio > MAX_WIDTH_RATIO:
+                if not self._runs_along_band(index, start, end, area, rows, plan):
+                    return _Quality(0.0)
+                width_quality, fill, along_band = ALONG_BAND_QUALITY, 1.0, True
+            elif ratio < MIN_WIDTH_RATIO:
+                # A line leaving the image shows only part of its width.
+                if not at_edge:
+                    return _Quality(0.0)
+                width_quality = EDGE_QUALITY
+            else:
+                width_quality = math.exp(-0.5 * (math.log(ratio) / LOG_WIDTH_TOLERANCE) ** 2)
+        colour_quality = 1.0
+        if strength_sums is not None:
+            top_down = len(self._bands) - 1 - index
+            strength = float(strength_sums[top_down, start:end].sum()) / area
+            colour_quality = min(1.0, 0.5 + 0.5 * (strength - 1.0) / (GOOD_STRENGTH - 1.0))
+        return _Quality(width_quality * min(1.0, fill / GOOD_FILL) * max(colour_quality, 0.0),
+                        along_band)
+
+    def _runs_along_band(self, index, start, end, area, rows, plan) -> bool:
+        """
+        Tell whether a wide stripe can be the line running across the view through the band.
+
+        Such a line fills most rows of the band over its run, as the line is thicker, in
+        rows, than the band there. In the first look a stripe from one image edge to the
+        other may be a whole floor passing fixed colour bounds under a cast; judged against
+        the floor (the second look) it is the line running right across the view.
+        """
+        if (start == 0 and end == self._image_shape[1]) and self._strength is None:
+            return False
+        if plan.across_rows_px[index] < ALONG_BAND_MIN_ROWS_SHARE * rows:
+            return False
+        return area >= ALONG_BAND_FILL * (end - start) * rows
+
+    def _slanted_width(self, index, start, end, area):
+        """
+        Measure a wide stripe row by row: its width across its slope, and its fill.
+
+        :return: (width in pixels across the stripe's direction, share of its rows' runs
+            covered).
+        """
+        layout = self._layout
+        top, bottom = self._bands[index]
+        top_down = len(self._bands) - 1 - index
+        rows = layout.mask[top_down].reshape(layout.rows, layout.width)
+        mask = rows[:bottom - top, start:end]
+        counts = mask.sum(axis=1, dtype=np.int64)
+        occupied = np.flatnonzero(counts)
+        if len(occupied) < 2:
+            return float(end - start), area / float(end - start)
+        columns = np.arange(start, end, dtype=np.float64)
+        centres = (mask[occupied] * columns).sum(axis=1) / counts[occupied]
+        slope = float(np.polyfit(occupied.astype(np.float64), centres, 1)[0])
+        chord = float(counts[occupied].mean())
+        return chord / math.sqrt(1.0 + slope * slope), 1.0
+
+    def _chain(self, candidates, plan):
+        """
+        Return the best chain of candidates through the bands, and the detection's confidence.
+
+        Each chained stripe counts by its quality, shared with the band's other stripes that
+        could take its place in the chain (as well linked to its neighbours): a band crowded
+        with line-like stripes (a robot's black cables over black tape) is doubtful. The sum
+        over the searchable bands is lowered further by a rival chain of the remaining stripes
+        (another line of the same colour).
+
+        :param candidates: per band nearest first, its candidates.
+        :param plan: the bands' plan.
+        :return: (the chosen candidates, nearest first; confidence 0 to 1).
+        """
+        support = _LinkSupport(self, plan)
+        best_score, chain = _best_chain(candidates, plan, self._previous_heading, support)
+        if not chain:
+            return [], 0.0
+        chosen = {id(candidate) for candidate in chain}
+        by_band = {candidate.band: candidate for candidate in chain}
+        # The other arm of a bend the chain takes is the same line, not a rival.
+        rivals = [[candidate for candidate in band if id(candidate) not in chosen and not (
+            candidate.band in by_band and support.joined(by_band[candidate.band], candidate))]
+            for band in candidates]
+        rival_score, _ = _best_chain(rivals, plan, self._previous_heading, support)
+        evidence = 0.0
+        for position, candidate in enumerate(chain):
+            before = chain[position - 1] if position > 0 else None
+            after = chain[position + 1] if position + 1 < len(chain) else None
+            stand_ins = sum(other.quality for other in rivals[candidate.band]
+                            if _could_replace(other, before, after, plan.jump))
+            evidence += candidate.quality * candidate.quality / (candidate.quality + stand_ins)
+        coverage = evidence / max(sum(plan.searched), 1)
+        rivalry = min(rival_score / best_score, 1.0) if best_score > 0.0 else 0.0
+        confidence = min(1.0, coverage) * (1.0 - RIVAL_WEIGHT * rivalry * rivalry)
+        if confidence < self._config.min_confidence:
+            return [], confidence
+        return chain, confidence
+
+    def _clean_detection(self, stripes_by_band, plan, geometry, width, height):
+        """
+        Return the first look's Detection when it is beyond doubt, else None.
+
+        Beyond doubt: every searched band holds exactly one stripe, each of the line's size,
+        linked into a line without a sharp turn, each where the last frame saw the line. The
+        usual case on a clean floor, so it is worked out in plain arithmetic, and the record
+        built as it goes: every array or helper call would cost microseconds.
+        """
+        if geometry is not None and geometry.intrinsics is not None and (
+                geometry.intrinsics.distortion):
+            return None
+        bands = self._bands
+        searched = plan.searched
+        expected_widths = plan.expected_width_px
+        previous_points = self._previous_points
+        jump = plan.jump
+        direction_x, direction_y = self._previous_heading or (1.0, 0.0)
+        tan_turn = TAN_FIRST_LINK_TURN
+        last = first = second = None
+        total_quality = 0.0
+        records = []
+        points = []
+        for index, stripes in enumerate(stripes_by_band):
+            top, bottom = bands[index]
+            if not searched[index]:
+                records.append(BandDetection(False, math.nan, math.nan, 0, top, bottom, False,
+                                             0.0))
+                points.append(None)
+                continue
+            if type(stripes) is not list or len(stripes) != 1:
+                return None
+            start, end, area, x_moment, y_moment = stripes[0]
+            if area < plan.min_area_px[index]:
+                return None
+            extent = end - start
+            fill = area / (extent * (bottom - top))
+            expected = expected_widths[index]
+            if expected is None:
+                if extent > NO_GEOMETRY_MAX_WIDTH_SHARE * width:
+                    return None
+                quality = min(1.0, fill / GOOD_FILL)
+            else:
+                ratio = extent / expected
+                if not MIN_WIDTH_RATIO <= ratio <= SLANT_CHECK_RATIO:
+                    return None
+                spread = math.log(ratio) / LOG_WIDTH_TOLERANCE
+                quality = math.exp(-0.5 * spread * spread) * min(1.0, fill / GOOD_FILL)
+            if quality < CLEAN_QUALITY:
+                return None
+            x_px = start + (x_moment - start * area) / area
+            point = (plan.forward[index], plan.left_per_px[index] * (x_px - plan.centre_px))
+            previous = previous_points[index]
+            if previous is not None and math.hypot(previous[0] - point[0],
+                                                   previous[1] - point[1]) > jump:
+                return None
+            if last is not None:
+                dx, dy = point[0] - last[0], point[1] - last[1]
+                along = dx * direction_x + dy * direction_y
+                if (along < -jump or abs(dx * direction_y - dy * direction_x)
+                        > jump + max(along, 0.0) * tan_turn):
+                    return None
+                length = math.hypot(dx, dy)
+                if length > 0.0:
+                    direction_x, direction_y = dx / length, dy / length
+                tan_turn = TAN_MAX_LINK_TURN
+            if first is None:
+                first = point
+            elif second is None:
+                second = point
+            last = point
+            points.append(point)
+            records.append(BandDetection(True, x_px, top + y_moment / area, area, top, bottom,
+                                         True, quality))
+            total_quality += quality
+        if first is None:
+            return None
+        confidence = min(1.0, total_quality / sum(searched))
+        if confidence < CLEAN_CONFIDENCE:
+            return None
+        self._previous_points = points
+        self._previous_heading = _heading(first, second) if second is not None else None
+        return Detection(tuple(records), width, height, confidence)
+
+    def _detection(self, chain, confidence, plan, width, height):
+        """Make the Detection of a chain, and remember it for the next frame."""
+        by_band = {candidate.band: candidate for candidate in chain}
+        bands = []
+        band_totals = None
+        for index, (top, bottom) in enumerate(self._bands):
+            candidate = by_band.get(index)
+            if candidate is None:
+                if band_totals is None:
+                    band_totals = np.add.reduce(
+                        self._layout.column_stats[0].reshape(len(self._bands), -1),
+                        axis=1).tolist()[::-1]
+                bands.append(BandDetection(False, math.nan, math.nan, band_totals[index],
+                                           top, bottom, plan.searched[index], 0.0))
+            else:
+                bands.append(BandDetection(True, candidate.x_px, candidate.y_px,
+                                           candidate.area_px, top, bottom, True,
+                                           candidate.quality))
+        tracked = confidence >= TRACKING_CONFIDENCE
+        self._previous_points = [by_band[index].point if tracked and index in by_band
+                                 else None for index in range(len(self._bands))]
+        self._previous_heading = (_heading(chain[0].point, chain[1].point)
+                                  if tracked and len(chain) >= 2 else None)
+        return Detection(tuple(bands), width, height, confidence)
 
     def _band_pixels(self, image, channels):
         """Return the bands' pixels, top down, as (bands, rows * width[, channels]) uint8."""
@@ -631,7 +1025,7 @@ class LineDetector:
                                 verdict)
         for index, first_padding_pixel in layout.padding:
             verdict[index, first_padding_pixel:] = 0
-        cv2.threshold(verdict, _RULE_YES - 1, 1, cv2.THRESH_BINARY, dst=layout.mask)
+        cv2.threshold(verdict, RULE_YES - 1, 1, cv2.THRESH_BINARY, dst=layout.mask)
         if self._rule is not None and (cv2.countNonZero(verdict)
                                        != cv2.countNonZero(layout.mask)):
             # Some pixels are neither sure yes nor sure no.
@@ -652,7 +1046,7 @@ class LineDetector:
         """Decide the pixels the fast rule left undecided with cvtColor and inRange."""
         layout = self._layout
         # Verdicts other than yes, kept only when not no either; the blue plane is free now.
-        undecided = cv2.threshold(layout.verdict, _RULE_YES - 1, _RULE_YES,
+        undecided = cv2.threshold(layout.verdict, RULE_YES - 1, RULE_YES,
                                   cv2.THRESH_TOZERO_INV, dst=layout.planes[0])[1]
         band, pixel = np.divmod(np.flatnonzero(undecided.view(np.bool_)), undecided.shape[1])
         values = band_pixels[band, pixel]
@@ -664,10 +1058,12 @@ class LineDetector:
                            self._upper_hsv)
         layout.mask[band, pixel] = line.reshape(-1) != 0
 
-    def _stripes(self):
+    def _stripes(self, min_column_pixels=1):
         """
         Return each band's stripes of line pixels that are large enough, nearest band first.
 
+        :param min_column_pixels: a column is part of a stripe when at least this many of
+            its pixels in the band are the line's.
         :return: per band None, or its stripes left to right: a list of (first column, end
             column, pixels, sum of the pixels' columns, sum of their rows within the band)
             tuples, or, when all bands together have more than _STRIPES_LISTED, those five
@@ -685,7 +1081,10 @@ class LineDetector:
         stats = layout.column_stats
         np.copyto(stats[:2], column_sums)
         occupied = layout.occupied
-        np.not_equal(column_sums[0], layout.no_pixels, out=occupied[1:])
+        if min_column_pixels == 1:
+            np.not_equal(column_sums[0], layout.no_pixels, out=occupied[1:])
+        else:
+            np.greater_equal(column_sums[0], min_column_pixels, out=occupied[1:])
         np.not_equal(occupied[1:], occupied[:-1], out=layout.changes)
         edges = layout.changes.nonzero()[0]
         stripes_by_band = [None] * count
@@ -739,70 +1138,263 @@ class LineDetector:
                     (first_column, end - start + first_column, area, x_moment, y_moment))
         return stripes_by_band
 
-    def _choose(self, stripes_by_band, width, height):
-        """Return the Detection taking, in each band, the stripe nearest where it expects."""
-        bands = []
-        neighbour_x_px = math.nan
-        max_jump_px = self._config.max_stripe_jump_fraction * width
-        previous_x_px = self._previous_x_px
-        band_totals = None
-        for index, (top, bottom) in enumerate(self._bands):
-            stripe = None
-            stripes = stripes_by_band[index]
-            if stripes is not None:
-                expected_x_px = previous_x_px[index]
-                if not math.isfinite(expected_x_px):
-                    expected_x_px = neighbour_x_px
-                allowed_px = max_jump_px
-                if not math.isfinite(expected_x_px):
-                    expected_x_px, allowed_px = width / 2.0, math.inf
-                if type(stripes) is list and len(stripes) == 1:
-                    # The usual case, worth the few lines: no call per band.
-                    stripe = stripes[0]
-                    distance_px = max(stripe[0] - expected_x_px, expected_x_px - stripe[1], 0)
+
+def _heading(near, far):
+    """Return the unit vector from one point to another, or None if they coincide."""
+    dx, dy = far[0] - near[0], far[1] - near[1]
+    length = math.hypot(dx, dy)
+    if length == 0.0:
+        return None
+    return dx / length, dy / length
+
+
+def _link_cost(near, far, direction, max_turn_rad, jump):
+    """
+    Return the cost of the line going from one band's point to a farther band's, or None.
+
+    :param near: the nearer point.
+    :param far: the farther point.
+    :param direction: the unit vector the line leads in at the nearer point.
+    :param max_turn_rad: the most the line may turn on this link.
+    :param jump: sideways distance allowed whatever the turn (noise, a short link).
+    :return: the cost (0 straight on, TURN_COST at the limit), None beyond the limit or when
+        the far point lies back behind the near one.
+    """
+    dx, dy = far[0] - near[0], far[1] - near[1]
+    along = dx * direction[0] + dy * direction[1]
+    if along < -jump:
+        return None
+    sideways = abs(dx * direction[1] - dy * direction[0])
+    tolerance = jump + max(along, 0.0) * math.tan(max_turn_rad)
+    if sideways > tolerance:
+        return None
+    return TURN_COST * (sideways / tolerance) ** 2
+
+
+def _could_replace(other, before, after, jump):
+    """Tell whether a stripe links to a chain member's neighbours as well as a line would."""
+    for near, far in ((before, other), (other, after)):
+        if near is None or far is None:
+            continue
+        direction = _heading(near.point, far.point)
+        if direction is None:
+            continue
+        if _link_cost(near.point, far.point, direction, MAX_LINK_TURN_RAD, jump) is None:
+            return False
+    if before is not None and math.dist(before.point, other.point) > (
+            math.dist(before.point, after.point) if after is not None else math.inf):
+        return False
+    return True
+
+
+class _LinkSupport:
+    """
+    How much of the image between two bands' stripes is the line's colour (0 to 1), cached.
+
+    A line runs on between the bands: along the segment joining its stripes in two bands,
+    most pixels (a solid line) or a good share (a dashed one) are the line's colour, judged
+    against the floor of the nearer band. Between the line and a yellow object beside it
+    there is bare floor: that link has no support.
+    """
+
+    def __init__(self, detector, plan):
+        self._image, (self._channels, blue, red) = detector._look_image
+        self._order = [blue, 1, red]
+        self._model = detector._floor_model
+        self._count = len(detector._bands)
+        self._plan = plan
+        self._cache = {}
+
+    def __call__(self, near, far) -> float:
+        """Return the support of the link from a nearer candidate to a farther one."""
+        key = (id(near), id(far))
+        if key not in self._cache:
+            self._cache[key] = self._measure(near, far)
+        return self._cache[key]
+
+    def _measure(self, near, far) -> float:
+        straight = self._path_support([(near.x_px, near.y_px), (far.x_px, far.y_px)], near, far)
+        if straight >= FULL_LINK_SUPPORT:
+            return straight
+        # A line bending between two stripes near one side of the view may run out of it
+        # and back: look along the image's edge there too.
+        width = self._image.shape[1]
+        rows = abs(near.y_px - far.y_px)
+        for edge_px in (0.0, width - 1.0):
+            if max(abs(near.x_px - edge_px), abs(far.x_px - edge_px)) < rows:
+                detour = [(near.x_px, near.y_px), (edge_px, 0.5 * (near.y_px + far.y_px)),
+                          (far.x_px, far.y_px)]
+                return max(straight, self._path_support(detour, near, far))
+        return straight
+
+    def joined(self, chosen, other) -> bool:
+        """
+        Tell whether two stripes of one band are the two arms of one bend.
+
+        Where the line turns back (a hairpin, a U seen from above), the band crosses it twice.
+        The arms are joined by line-coloured pixels along an arc below or above the band; a
+        second line is not.
+        """
+        half_px = 0.5 * abs(other.x_px - chosen.x_px)
+        along = (np.arange(MAX_LINK_SAMPLES) + 0.5) / MAX_LINK_SAMPLES
+        for share in HAIRPIN_DEPTH_SHARES:
+            for side in (1.0, -1.0):
+                # A quadratic Bezier arc whose middle lies that deep beyond the band.
+                control_x = 0.5 * (chosen.x_px + other.x_px)
+                control_y = chosen.y_px + side * 2.0 * share * half_px
+                x_px = ((1 - along) ** 2 * chosen.x_px + 2 * along * (1 - along) * control_x
+                        + along ** 2 * other.x_px)
+                y_px = ((1 - along) ** 2 * chosen.y_px + 2 * along * (1 - along) * control_y
+                        + along ** 2 * other.y_px)
+                if self._support(x_px, y_px, chosen, other) < FULL_LINK_SUPPORT:
+                    continue
+                # Beside the arc, across its direction, the floor must show.
+                tangent_x = 2 * (1 - along) * (control_x - chosen.x_px) + 2 * along * (
+                    other.x_px - control_x)
+                tangent_y = 2 * (1 - along) * (control_y - chosen.y_px) + 2 * along * (
+                    other.y_px - control_y)
+                length = np.maximum(np.hypot(tangent_x, tangent_y), 1e-9)
+                across = (-tangent_y / length, tangent_x / length)
+                if self._support(x_px, y_px, chosen, other, BESIDE_LINE_OFFSETS,
+                                 across) <= 1.0 - FULL_LINK_SUPPORT:
+                    return True
+        return False
+
+    def _path_support(self, waypoints, near, far) -> float:
+        """Return the support along a path of straight pieces from a stripe to another."""
+        lengths = [abs(y1 - y0) for (_, y0), (_, y1) in zip(waypoints, waypoints[1:])]
+        total = sum(lengths)
+        samples = int(min(max(total / LINK_SAMPLE_SPACING_PX, MIN_LINK_SAMPLES),
+                          MAX_LINK_SAMPLES))
+        distance = (np.arange(samples) + 0.5) / samples * max(total, 1e-9)
+        x_px = np.empty(samples)
+        y_px = np.empty(samples)
+        start = 0.0
+        for (x0, y0), (x1, y1), length in zip(waypoints, waypoints[1:], lengths):
+            inside = (distance >= start) & (distance <= start + length)
+            t = (distance[inside] - start) / max(length, 1e-9)
+            x_px[inside] = x0 + t * (x1 - x0)
+            y_px[inside] = y0 + t * (y1 - y0)
+            start += length
+        return self._support(x_px, y_px, near, far)
+
+    def _support(self, x_px, y_px, near, far, offsets=LINK_OFFSETS, across=None) -> float:
+        """
+        Return the share of points that are the line's colour, judged on the line's width.
+
+        Each point is judged against the floor of the band of the stripe it is nearer (in
+        rows), at offsets (in half widths of the line there) along the row, or along the
+        given unit vectors ``across`` (x, y arrays), and counts when any of them is.
+        """
+        height, width = self._image.shape[:2]
+        samples = len(x_px)
+        widths = [self._plan.expected_width_px[near.band],
+                  self._plan.expected_width_px[far.band]]
+        span = far.y_px - near.y_px
+        towards_far = np.clip((y_px - near.y_px) / span, 0.0, 1.0) if span else np.zeros(samples)
+        if widths[0] is None:
+            half_px = np.full(samples, LINK_NO_GEOMETRY_HALF_WIDTH_PX)
+        else:
+            half_px = 0.5 * (widths[0] + towards_far * (widths[1] - widths[0]))
+        if across is None:
+            columns = x_px[:, np.newaxis] + half_px[:, np.newaxis] * offsets
+            rows_px = np.repeat(y_px[:, np.newaxis], len(offsets), axis=1)
+        else:
+            reach_px = half_px[:, np.newaxis] * offsets
+            columns = x_px[:, np.newaxis] + reach_px * across[0][:, np.newaxis]
+            rows_px = y_px[:, np.newaxis] + reach_px * across[1][:, np.newaxis]
+        column = np.rint(columns).astype(np.intp)
+        row = np.clip(np.rint(rows_px).astype(np.intp), 0, height - 1)
+        # The mean of each sample's row neighbours, as the bands' pixels were smoothed.
+        reach = line_colour.SMOOTHING_KERNEL_PX[0] // 2
+        column = np.clip(column, reach, width - 1 - reach)
+        total = 0.0
+        for column_offset in range(-reach, reach + 1):
+            total = total + self._image[row, column + column_offset].astype(np.float32)
+        pixels = total / (2 * reach + 1)
+        if self._channels > 1:
+            pixels = pixels[..., self._order]
+        band_of = np.where(towards_far < 0.5, self._count - 1 - near.band,
+                           self._count - 1 - far.band)
+        band_of = np.repeat(band_of[:, np.newaxis], len(offsets), axis=1)
+        strength = line_colour.pixel_strength(
+            self._model, pixels.reshape((-1,) + pixels.shape[2:]), band_of.reshape(-1))
+        return float((strength.reshape(samples, -1).max(axis=1) >= 1.0).mean())
+
+
+def _best_chain(candidates, plan, prior_heading, support=None):
+    """
+    Find the chain of candidates, at most one a band, nearest first, that best forms a line.
+
+    A chain scores the sum of its candidates' qualities, less the cost of each turn (which
+    needs the two links around it: the search runs over pairs of candidates) and of each
+    searched band it skips.
+
+    :param candidates: per band nearest first, its candidates.
+    :param plan: the bands' plan (which bands are searched, the jump allowance).
+    :param prior_heading: the unit vector the line leads in from the nearest band (the last
+        frame's), or None for straight ahead.
+    :return: (score, chain nearest first); (0, []) without candidates.
+    """
+    flat = [candidate for band in candidates for candidate in band
+            if all(math.isfinite(value) for value in candidate.point)]
+    if not flat:
+        return 0.0, []
+    searched_before = [0]
+    for searched in plan.searched:
+        searched_before.append(searched_before[-1] + searched)
+    prior = prior_heading or (1.0, 0.0)
+    # (index of the previous candidate or -1, index of this one) -> (score, key it came from)
+    states = {}
+    ends = [[] for _ in flat]
+    for current, candidate in enumerate(flat):
+        weight = NEAR_BAND_WEIGHT ** candidate.band
+        worth = candidate.quality * weight
+        states[(-1, current)] = (worth, None)
+        ends[current].append(-1)
+        for previous in range(current):
+            before = flat[previous]
+            if before.band >= candidate.band:
+                break
+            skipped = searched_before[candidate.band] - searched_before[before.band + 1]
+            best = None
+            link_cost = None
+            for earlier in ends[previous]:
+                score = states[(earlier, previous)][0]
+                if earlier == -1:
+                    direction, turn = prior, FIRST_LINK_TURN_RAD
                 else:
-                    stripe, distance_px = _nearest_stripe(stripes, expected_x_px)
-                if distance_px > allowed_px:
-                    stripe = None
-            if stripe is None:
-                if band_totals is None:
-                    band_totals = np.add.reduce(
-                        self._layout.column_stats[0].reshape(len(self._bands), -1),
-                        axis=1).tolist()[::-1]
-                band = BandDetection(False, math.nan, math.nan, band_totals[index], top,
-                                     bottom)
-            else:
-                start, _, area, x_moment, y_moment = stripe
-                # The moments about the stripe's first column and the band's top row.
-                band = BandDetection(True, start + (x_moment - start * area) / area,
-                                     top + y_moment / area, area, top, bottom)
-                neighbour_x_px = band.centroid_x_px
-            previous_x_px[index] = band.centroid_x_px
-            bands.append(band)
-        return Detection(tuple(bands), width, height)
-
-
-def _nearest_stripe(stripes, expected_x_px):
-    """
-    Return the first stripe nearest a column, and its distance (0 inside it).
-
-    :param stripes: (first column, end column, pixels, x moment, y moment) tuples left to
-        right, or those five as the rows of an int64 array.
-    :param expected_x_px: the column.
-    :return: (stripe tuple, distance in pixels).
-    """
-    if isinstance(stripes, np.ndarray):
-        distances_px = np.maximum(
-            np.maximum(stripes[0] - expected_x_px, expected_x_px - stripes[1]), 0)
-        nearest = int(np.argmin(distances_px))
-        return tuple(stripes[:, nearest].tolist()), float(distances_px[nearest])
-    nearest = None
-    nearest_distance_px = math.inf
-    for stripe in stripes:
-        distance_px = max(stripe[0] - expected_x_px, expected_x_px - stripe[1], 0)
-        if distance_px < nearest_distance_px:
-            nearest, nearest_distance_px = stripe, distance_px
-    return nearest, nearest_distance_px
+                    direction = _heading(flat[earlier].point, before.point) or prior
+                    turn = MAX_LINK_TURN_RAD
+                cost = _link_cost(before.point, candidate.point, direction, turn, plan.jump)
+                if cost is None:
+                    continue
+                if support is not None:
+                    if link_cost is None:
+                        link_cost = UNSUPPORTED_LINK_COST * max(
+                            0.0, 1.0 - support(before, candidate) / FULL_LINK_SUPPORT)
+                    cost += link_cost
+                if best is None or score - cost > best[0]:
+                    best = (score - cost, (earlier, previous))
+            if best is not None:
+                states[(previous, current)] = (best[0] + worth
+                                               - GAP_COST * skipped, best[1])
+                ends[current].append(previous)
+    ends = {}
+    for key, (score, back) in states.items():
+        first = key[1]
+        while back is not None:
+            first, back = back[1], states[back][1]
+        # Between chains as good, the one starting nearest the robot's path wins.
+        ends[key] = score - CENTRE_PREFERENCE * abs(flat[first].point[1]) / (
+            abs(flat[first].point[1]) + plan.jump)
+    key = max(ends, key=ends.get)
+    score = states[key][0]
+    chain = []
+    while key is not None:
+        chain.append(flat[key[1]])
+        key = states[key][1]
+    return score, chain[::-1]
 
 
 def draw_debug(image_bgr, detection):
@@ -827,7 +1419,8 @@ def draw_debug(image_bgr, detection):
     for band in detection.bands:
         cv2.rectangle(
             canvas, (0, band.top_px), (width - 1, band.bottom_px - 1),
-            DEBUG_BAND_COLOUR_BGR, DEBUG_LINE_THICKNESS_PX)
+            DEBUG_BAND_COLOUR_BGR if band.searched else DEBUG_UNSEARCHED_BAND_COLOUR_BGR,
+            DEBUG_LINE_THICKNESS_PX)
         if band.found:
             centroid = (round(band.centroid_x_px), round(band.centroid_y_px))
             cv2.circle(

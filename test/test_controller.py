@@ -84,13 +84,14 @@ def seen(error=0.0, seen_count=BAND_COUNT):
 
     :param error: the line's offset from the image centre, -1 (left edge) to 1 (right edge).
     :param seen_count: how many bands, nearest first, saw it; the others saw nothing.
-    :return: the Detection.
+    :return: the Detection, as sure as the share of the bands that saw the line.
     """
     centroid_x_px = IMAGE_WIDTH_PX / 2 * (1.0 + error)
     return Detection(
         bands=tuple(band(index, centroid_x_px if index < seen_count else None)
                     for index in range(BAND_COUNT)),
-        image_width_px=IMAGE_WIDTH_PX, image_height_px=IMAGE_HEIGHT_PX)
+        image_width_px=IMAGE_WIDTH_PX, image_height_px=IMAGE_HEIGHT_PX,
+        confidence=seen_count / BAND_COUNT)
 
 
 def nothing_seen():
@@ -480,7 +481,7 @@ def test_proportional_law_turns_towards_the_line(error):
 def test_proportional_law_steers_on_the_nearest_band_that_saw_the_line():
     bands = (band(0), band(1, 480.0), band(2, 160.0)) + tuple(
         band(index) for index in range(3, BAND_COUNT))
-    detection = Detection(bands, IMAGE_WIDTH_PX, IMAGE_HEIGHT_PX)
+    detection = Detection(bands, IMAGE_WIDTH_PX, IMAGE_HEIGHT_PX, confidence=2 / BAND_COUNT)
     command = law_command(None, detection, steering_law='proportional',
                           angular_gain_radps=3.2, max_angular_speed_radps=10.0)
     assert command.angular_radps == pytest.approx(-3.2 * 0.5)
