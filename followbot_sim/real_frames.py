@@ -1,0 +1,193 @@
+"""
+Real camera frames of lines, labelled by hand, and the follower's perception scored on them.
+
+The frames are third-party photographs from public robot projects. They are not part of this
+repository: they are read from ``../shared/real-frames/`` beside the checkout (or the folder
+``FOLLOWBOT_REAL_FRAMES`` names), whose ``MANIFEST.md`` gives their sources and licences. The
+labels are this project's own work, in ``test/data/real_frames/<source>.yaml`` (their format is
+described in that folder's README): per source the robot's camera and its tape's width, per
+frame the centre line of every yellow, white or black line as polylines.
+
+Scoring runs the follower's detector as the follower node would (its default parameters, with
+the line colour preset of the line scored, the source's tape width and camera) on each frame
+and judges every band with :mod:`followbot_sim.perception_score`.
+"""
+
+import dataclasses
+import math
+import os
+from pathlib import Path
+
+import cv2
+from followbot.ground_projection import CameraGeometry
+from followbot.line_detector import DetectorConfig, LineDetector, MIN_WIDTH_RATIO
+from followbot_sim.perception_score import band_truth, group_lines, PerceptionTally
+import yaml
+
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
+LABELS_DIR = PACKAGE_DIR / 'test' / 'data' / 'real_frames'
+FRAMES_VARIABLE = 'FOLLOWBOT_REAL_FRAMES'
+DEFAULT_FRAMES_DIR = PACKAGE_DIR.parent / 'shared' / 'real-frames'
+LABELLED_COLOURS = ('yellow', 'white', 'black')
+
+
+@dataclasses.dataclass(frozen=True)
+class LabelledFrame:
+    """One labelled frame: its file, and the labelled lines of each colour."""
+
+    source: str
+    name: str
+    size: tuple
+    horizon_y_px: float
+    lines: dict
+    ignore_rows: tuple
+    camera: dict | None = None
+
+    def polylines(self, colour: str) -> list:
+        """Return the frame's labelled lines of a colour (none if it has none)."""
+        return self.lines.get(colour, [])
+
+
+@dataclasses.dataclass(frozen=True)
+class LabelledSource:
+    """A source of frames: the robot's camera, its tape widths, and its labelled frames."""
+
+    name: str
+    camera: dict
+    line_width_m: dict
+    frames: tuple
+
+    def geometry(self, frame: LabelledFrame | None = None) -> CameraGeometry:
+        """
+        Return the camera's geometry, as the robot's camera_info and mounting say.
+
+        :param frame: a frame taken by another camera than the source's (its own ``camera``).
+        :return: the geometry.
+        """
+        camera = frame.camera if frame is not None and frame.camera else self.camera
+        return CameraGeometry(fx_px=camera['fx_px'], fy_px=camera['fy_px'],
+                              cx_px=camera['cx_px'], cy_px=camera['cy_px'],
+                              height_m=camera['height_m'],
+                              pitch_rad=math.radians(camera['pitch_deg']))
+
+
+def load_labels(labels_dir: Path = LABELS_DIR) -> list:
+    """
+    Read every source's labels.
+
+    :param labels_dir: the folder of ``<source>.yaml`` label files.
+    :return: LabelledSource list, sorted by name.
+    :raises FileNotFoundError: if the folder holds no label files.
+    """
+    paths = sorted(Path(labels_dir).glob('*.yaml'))
+    if not paths:
+        raise FileNotFoundError(f'No label files (*.yaml) in {labels_dir}.')
+    sources = []
+    for path in paths:
+        document = yaml.safe_load(path.read_text())
+        name = document['source']
+        frames = tuple(
+            LabelledFrame(source=name, name=frame_name, size=tuple(frame['size']),
+                          horizon_y_px=float(frame.get('horizon_y_px', math.nan)),
+                          lines={colour: [[tuple(point) for point in polyline]
+                                          for polyline in polylines]
+                                 for colour, polylines in (frame.get('lines') or {}).items()},
+                          ignore_rows=tuple((first, last) for first, last, *_ in
+                                            frame.get('ignore_rows') or ()),
+                          camera=frame.get('camera'))
+            for frame_name, frame in document['frames'].items())
+        sources.append(LabelledSource(name=name, camera=document['camera'],
+                                      line_width_m=document['line_width_m'], frames=frames))
+    return sources
+
+
+def frames_folder() -> tuple:
+    """
+    Find the folder of real frames.
+
+    :return: (the folder or None, a one-line reason when it is None).
+    """
+    chosen = os.environ.get(FRAMES_VARIABLE)
+    folder = Path(chosen) if chosen else DEFAULT_FRAMES_DIR
+    if not folder.is_dir():
+        return None, (f'no real frames at {folder} (third-party files, not in the repository; '
+                      f'set {FRAMES_VARIABLE} to their folder)')
+    return folder, ''
+
+
+def detector_config(source: LabelledSource, colour: str, **overrides) -> DetectorConfig:
+    """
+    Return the follower's default detector configuration for a source's line of a colour.
+
+    :param source: the source (its tape width for that colour).
+    :param colour: the line colour preset.
+    :param overrides: further DetectorConfig fields.
+    :return: the configuration.
+    """
+    width_m = source.line_width_m.get(colour, DetectorConfig().line_width_m)
+    return DetectorConfig(line_colour=colour, line_width_m=width_m, **overrides)
+
+
+@dataclasses.dataclass
+class FrameResult:
+    """What the detector made of one frame: its verdicts, confidence and detection."""
+
+    frame: LabelledFrame
+    colour: str
+    verdicts: list
+    detection: object
+
+
+def frame_line_truths(frame, colour: str, detection, geometry, line_width_m: float) -> list:
+    """
+    Return the truth of each band of a detection, per line of a labelled frame's colour.
+
+    :param frame: the LabelledFrame.
+    :param colour: the line colour whose labelled lines are the truth.
+    :param detection: the line_detector.Detection whose bands are judged.
+    :param geometry: the frame's CameraGeometry (for the tape's width in each band), or None.
+    :param line_width_m: the width of the tape the detector is set up for.
+    :return: per line, one BandTruth per band (see perception_score.frame_verdicts).
+    """
+    centres_px = [(band.top_px + band.bottom_px - 1) / 2.0 for band in detection.bands]
+    if geometry is None:
+        thinnest_px = [0.0] * len(centres_px)
+    else:
+        # Markings much thinner than the tape are not the line the follower is set up for.
+        thinnest_px = MIN_WIDTH_RATIO * geometry.line_width_px(centres_px, line_width_m)
+    return [[band_truth(line, band.top_px, band.bottom_px, frame.ignore_rows,
+                        float(min_width_px))
+             for band, min_width_px in zip(detection.bands, thinnest_px)]
+            for line in group_lines(frame.polylines(colour))]
+
+
+def score_source(source: LabelledSource, frames_dir: Path, colour: str, frames=None,
+                 **overrides) -> tuple:
+    """
+    Score the follower's detector on a source's frames for a line colour.
+
+    Every frame is a first sight (the detector is reset): a still, not a sequence.
+
+    :param source: the labelled source.
+    :param frames_dir: the folder of real frames (holding ``<source>/<file>``).
+    :param colour: the line colour preset; each frame's lines of that colour are the truth
+        (a frame without any is all absent).
+    :param frames: the frames to score (default: all the source's).
+    :param overrides: DetectorConfig fields to change from the defaults.
+    :return: (PerceptionTally, list of FrameResult).
+    """
+    detector = LineDetector(detector_config(source, colour, **overrides))
+    tally = PerceptionTally()
+    results = []
+    for frame in frames if frames is not None else source.frames:
+        image = cv2.imread(str(Path(frames_dir) / source.name / frame.name))
+        if image is None:
+            raise FileNotFoundError(f'Cannot read {frames_dir}/{source.name}/{frame.name}.')
+        detector.reset()
+        geometry = source.geometry(frame)
+        detection = detector.detect(image, 'bgr8', geometry)
+        line_truths = frame_line_truths(frame, colour, detection, geometry,
+                                        detector.config.line_width_m)
+        verdicts = tally.add_frame(line_truths, detection)
+        results.append(FrameResult(frame, colour, verdicts, detection))
+    return tally, results
