@@ -46,7 +46,7 @@ from followbot.transport import (environment_without_profile, keep_large_buffers
                                  USER_CONFIGURATION_VARIABLES)
 from followbot_sim import real_frames
 from followbot_sim.course_file import load_course
-from followbot_sim.perception_score import PerceptionTally
+from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.score import score_values
 from followbot_sim.score import SIMULATOR_NODE
 from followbot_sim.world import FollowbotWorld
@@ -285,10 +285,12 @@ def format_perception(results: dict) -> str:
                             'p99 µs', 'book ÷ this (median)'], rows)
 
 
-def measure_real_frames() -> dict:
+def measure_real_frames(pictures_dir: Path | None = None) -> dict:
     """
     Score the default follower's detector on the labelled real camera frames, per source.
 
+    :param pictures_dir: where to save a schematic (labels and verdicts, none of the frame's
+        pixels) of every frame with a band not right, or None.
     :return: ``folder`` and ``rows`` (source, colour, PerceptionTally fields), or ``error``
         saying why there are no frames.
     """
@@ -301,7 +303,12 @@ def measure_real_frames() -> dict:
             frames = [frame for frame in source.frames if frame.polylines(colour)]
             if not frames:
                 continue
-            tally, _ = real_frames.score_source(source, folder, colour, frames)
+            tally, results = real_frames.score_source(source, folder, colour, frames)
+            for result in results:
+                if pictures_dir is not None and set(result.verdicts) != {RIGHT}:
+                    pictures_dir.mkdir(parents=True, exist_ok=True)
+                    cv2.imwrite(str(pictures_dir / f'{Path(result.frame.name).stem}_{colour}.png'),
+                                real_frames.draw_schematic(result))
             rows.append({'source': source.name, 'colour': colour,
                          **dataclasses.asdict(tally)})
     return {'folder': str(folder), 'rows': rows}
@@ -634,6 +641,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
                         help='ROS domain of the runs, which take turns in it (default: from '
                              'the process id, in 100..199)')
+    parser.add_argument('--real-frame-pictures', type=Path, default=None, metavar='DIR',
+                        help='real_frames: save a schematic of every frame not all right '
+                             "(labels and verdicts, none of the frame's pixels) in DIR")
     parser.add_argument('--json', type=Path, default=None, metavar='FILE',
                         help='also write the figures to this JSON file')
     refuse_ros_arguments(parser, argv, 'it starts its own nodes with the settings it measures.')
@@ -682,7 +692,7 @@ def main(argv=None) -> int:
                   f"({perception['frames']} frames rendered around {COURSE}, each "
                   f'{options.repeats} times)\n\n{format_perception(perception)}\n', flush=True)
         if 'real_frames' in options.sections and not stop.is_set():
-            real = measure_real_frames()
+            real = measure_real_frames(options.real_frame_pictures)
             report['real_frames'] = real
             print('## The default follower on real camera frames (per band, against labels made '
                   f'by looking)\n\n{format_real_frames(real)}\n', flush=True)
