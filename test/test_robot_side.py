@@ -14,7 +14,7 @@ CHILD_TIMEOUT_S = 120.0
 # Run in a fresh interpreter where followbot_sim and mujoco cannot be imported (None in
 # sys.modules makes an import raise ImportError): every followbot module is imported, then a
 # follower node takes a camera frame of a line over DDS and answers with a cmd_vel.
-ROBOT_ONLY = '''
+ROBOT_ONLY = """
 import sys
 sys.modules['followbot_sim'] = None
 sys.modules['mujoco'] = None
@@ -68,7 +68,7 @@ executor.shutdown()
 follower.destroy_node()
 camera.destroy_node()
 rclpy.try_shutdown(context=context)
-'''
+"""
 
 
 def test_the_follower_runs_with_no_simulator_installed(tmp_path):
