@@ -102,12 +102,13 @@ _SHARP_CORNERS_TURNS = (+1, +1, -1, +1, +1)
 _T_JUNCTION_STUBS = ((2.5, +1), (9.5, -1), (13.0, +1))
 _STUB_LENGTH_M = 0.5
 
-# line_end: a rounded rectangle painted only from the start, up its east side, round the
-# north-east corner and 2 m along the north side, where the line stops; the rest of the loop is
-# bare floor (the scoring's centre line). The floor ahead of the end stays bare for more than the
-# ~2.7 m the camera sees.
+# line_end: a rounded rectangle whose line is painted only from 1 m behind the start (in the
+# middle of its east side) up that side, round the north-east corner and 2 m along the north
+# side, where the line stops; the rest of the loop is bare floor (the scoring's centre line).
+# The floor ahead of the end stays bare for more than the ~2.7 m the camera sees.
 _LINE_END_SIDES_M = (3.0, 4.0)
 _LINE_END_CORNER_RADIUS_M = 1.0
+_LINE_END_PAINTED_BEHIND_START_M = 1.0
 _LINE_END_PAINTED_ALONG_NORTH_SIDE_M = 2.0
 
 # with_lighting_zones: pools of bright and dim light alternating along the line, centred on it
@@ -423,22 +424,24 @@ def t_junction():
 
 def line_end():
     """
-    Build a line that ends: 6.6 m of a rounded rectangle's line, then bare floor.
+    Build a line that ends: 6.1 m of a rounded rectangle's line, then bare floor.
 
-    The painted line runs from the start 3 m north, round a 1 m corner to the west and 2 m on,
-    where it stops square; the follower must stop there. The rest of the 6 m x 5 m loop is the
-    scoring's centre line only.
+    The painted line begins 1 m behind the start, runs 2.5 m north past it, round a 1 m corner
+    to the west and 2 m on, where it stops square, 5.07 m after the start; the follower must
+    stop there. The rest of the 6 m x 5 m loop is the scoring's centre line only.
 
     :return: the course, named 'line_end'.
     """
     side_ns_m, side_ew_m = _LINE_END_SIDES_M
     corner = Arc(_LINE_END_CORNER_RADIUS_M, math.pi / 2.0)
-    segments = [Straight(side_ns_m), corner, Straight(side_ew_m), corner, Straight(side_ns_m),
-                corner, Straight(side_ew_m), corner]
+    half_side = Straight(side_ns_m / 2.0)
+    segments = [half_side, corner, Straight(side_ew_m), corner, Straight(side_ns_m),
+                corner, Straight(side_ew_m), corner, half_side]
     points_xy = turtle_loop_xy((0.0, 0.0, math.pi / 2.0), segments)
-    painted_length_m = (side_ns_m + _LINE_END_CORNER_RADIUS_M * math.pi / 2.0
-                        + _LINE_END_PAINTED_ALONG_NORTH_SIDE_M)
-    return Course(_centred(points_xy), name='line_end', painted_length_m=painted_length_m)
+    end_m = (side_ns_m / 2.0 + _LINE_END_CORNER_RADIUS_M * math.pi / 2.0
+             + _LINE_END_PAINTED_ALONG_NORTH_SIDE_M)
+    return Course(_centred(points_xy), name='line_end',
+                  painted_interval_m=(-_LINE_END_PAINTED_BEHIND_START_M, end_m))
 
 
 def distractor_beside(course, arc_length_m, offset_m, length_m, width_m, yaw_rad=0.0):

@@ -104,7 +104,8 @@ def drive_centre_line(course, laps, offset_m=0.0, speed_m_s=0.5):
 
 def test_the_library_has_the_documented_courses():
     assert set(COURSES) == {'book_loop', 'square_corners', 's_bends', 'dashed', 'figure_eight',
-                            'distractor'}
+                            'distractor', 'hairpins', 'sharp_corners', 't_junction',
+                            'line_end'}
 
 
 @pytest.mark.parametrize('name', COURSE_NAMES)
