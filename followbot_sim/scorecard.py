@@ -88,6 +88,14 @@ TYPE_NAMES = {bool: 'a boolean (true or false)', int: 'an integer',
 END_LAP = 'lap completed'
 END_TIME_LIMIT = 'time limit'
 END_STUCK = 'stuck'
+END_LINE_END = 'stopped at line end'
+# A run on a line that ends has ended well when it stood still on the paint no farther than
+# this before the end: the nearest band sees the floor ~0.35 m ahead of the robot's centre, so
+# a follower that stops when the end leaves its view stands about that far before it.
+STOPPED_BEFORE_LINE_END_WITHIN_M = 0.6
+# Standing still: slower than a millimetre a frame either way.
+STANDING_STILL_MPS = 0.02
+STANDING_STILL_RADPS = 0.02
 END_ERROR = 'error'
 END_INTERRUPTED = 'interrupted'
 # Shown in the table for a figure a run does not have (no lap, no ratio, an error).
@@ -481,6 +489,24 @@ def _wait_until_connected(executor, simulator, follower, stop_requested) -> None
         executor.spin_once(timeout_sec=CONNECT_POLL_S)
 
 
+def stopped_at_line_end(world, tracker) -> bool:
+    """
+    Tell whether the robot stands still on a line that ends, just before its end.
+
+    :param world: the simulator's World.
+    :param tracker: its LapTracker, progress counted from the start of the course.
+    :return: True on a course whose paint ends, with the robot at rest no farther than
+        ``STOPPED_BEFORE_LINE_END_WITHIN_M`` before the end of the paint (and not beyond it).
+    """
+    painted_interval_m = world.course.painted_interval_m
+    if painted_interval_m is None:
+        return False
+    before_end_m = painted_interval_m[1] - tracker.progress_m
+    linear_mps, angular_radps = world.robot_twist()
+    return (0.0 <= before_end_m <= STOPPED_BEFORE_LINE_END_WITHIN_M
+            and abs(linear_mps) < STANDING_STILL_MPS and abs(angular_radps) < STANDING_STILL_RADPS)
+
+
 def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
                  time_limit_s: float | None = None,
                  stuck_after_s: float = DEFAULT_STUCK_AFTER_S,
@@ -529,7 +555,7 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
             elif world.time_s >= time_limit_s:
                 end_reason = END_TIME_LIMIT
             elif stuck.update(world.time_s, tracker.progress_m):
-                end_reason = END_STUCK
+                end_reason = END_LINE_END if stopped_at_line_end(world, tracker) else END_STUCK
             elif stop_requested.is_set():
                 end_reason = END_INTERRUPTED
             else:
