@@ -169,8 +169,9 @@ class VideoNode(Node):
         self._parameters_request.add_done_callback(self._take_simulator_parameters)
 
     def _take_simulator_parameters(self, future) -> None:
-        values = dict(zip(SIMULATOR_PARAMETERS, (parameter_value_to_python(value)
-                                                  for value in future.result().values)))
+        answers = future.result().values
+        values = {name: parameter_value_to_python(value)
+                  for name, value in zip(SIMULATOR_PARAMETERS, answers)}
         try:
             self._course = load_course(values['course'], lighting=values['lighting_zones'])
         except ValueError as error:
