@@ -23,6 +23,8 @@ SPEED_FILE = 'speed_{scenario}.png'
 # A scenario named by a course file's path becomes a file name with these characters only.
 UNSAFE_FILE_CHARACTERS = re.compile(r'[^A-Za-z0-9_.-]+')
 CURVE_WIDTH = 1.2
+# The lap-time axis reaches this far above the longest lap: room for the legend.
+LEGEND_HEADROOM = 1.25
 
 
 def _file_stem(scenario: str) -> str:
@@ -77,7 +79,7 @@ def plot_along_course(runs: list, column: str, scale: float, y_label: str, title
         axes.plot(samples['progress_m'], [scale * value for value in samples[column]],
                   label=run['configuration'], linewidth=CURVE_WIDTH)
     if axes.has_data():
-        axes.legend(loc='upper right')
+        axes.legend(loc='best')
     return _save(figure, path)
 
 
@@ -111,7 +113,10 @@ def plot_lap_times(runs: list, path: Path) -> Path:
     axes.set_xticklabels([_file_stem(scenario) for scenario in scenarios], rotation=30,
                          ha='right', fontsize=8)
     axes.grid(False, axis='x')
-    axes.legend(loc='upper right')
+    # Headroom above the tallest bar for the legend, in one row, and the bars' labels.
+    highest_s = max((time_s for time_s in lap_s.values() if time_s), default=1.0)
+    axes.set_ylim(0.0, LEGEND_HEADROOM * highest_s)
+    axes.legend(loc='upper center', ncols=max(1, len(configurations)))
     return _save(figure, path)
 
 

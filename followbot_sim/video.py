@@ -154,11 +154,6 @@ class VideoNode(Node):
         # Asks as soon as the simulator's service appears (it starts after this node).
         self._ask_timer = self.create_timer(0.1, self.ask_simulator_callback)
 
-    @property
-    def frames_written(self) -> int:
-        """Return how many video frames are in the file so far."""
-        return self._schedule.frames if self._writer is not None else 0
-
     def ask_simulator_callback(self) -> None:
         """Ask the simulator for its course and camera rate once its service is there."""
         if self._parameters_request is not None or not self._parameters_client.service_is_ready():
@@ -169,7 +164,11 @@ class VideoNode(Node):
         self._parameters_request.add_done_callback(self._take_simulator_parameters)
 
     def _take_simulator_parameters(self, future) -> None:
-        answers = future.result().values
+        response = future.result()
+        if response is None or len(response.values) != len(SIMULATOR_PARAMETERS):
+            self._fail(f'The simulator {self._simulator} did not say which course it runs.')
+            return
+        answers = response.values
         values = {name: parameter_value_to_python(value)
                   for name, value in zip(SIMULATOR_PARAMETERS, answers)}
         try:
