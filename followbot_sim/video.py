@@ -144,6 +144,8 @@ class VideoNode(Node):
         self._pose = None
         self._score = {}
         self._frame_size = None
+        # Camera frames written: the video's other frames repeat one (and time 0 has none).
+        self._camera_frames_used = 0
         self.create_subscription(Image, DEBUG_IMAGE_TOPIC, self.debug_image_callback, VIDEO_QOS)
         self.create_subscription(Odometry, GROUND_TRUTH_TOPIC, self.ground_truth_callback,
                                  POSE_QOS)
@@ -218,6 +220,7 @@ class VideoNode(Node):
             return
         for _ in range(count):
             self._writer.write(frame)
+        self._camera_frames_used += 1
 
     def _open(self, camera_bgr) -> bool:
         height_px, width_px = camera_bgr.shape[:2]
@@ -253,9 +256,13 @@ class VideoNode(Node):
         self._writer = None
         frames = self._schedule.frames
         size_mb = self._path.stat().st_size / BYTES_PER_MB
+        # Time 0 comes before the first camera frame: its video frame is the first one's.
+        repeated = frames - 1 - self._camera_frames_used
+        repeats = (f'; {repeated} repeat the frame before, as the camera frame for them did '
+                   'not reach the video in time' if repeated > 0 else '')
         self.get_logger().info(
             f'Video {self._path}: {frames} frames, {frames * self._period_s:.1f} s at '
-            f'{1.0 / self._period_s:g} frames/s, {size_mb:.1f} MB.')
+            f'{1.0 / self._period_s:g} frames/s, {size_mb:.1f} MB{repeats}.')
 
 
 def add_video_node(executor, path, simulator: str, period_s: float | None = None) -> VideoNode:
