@@ -27,6 +27,7 @@ from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_na
 from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot_sim.course_library import COURSES
 from followbot_sim.score import score_values, SIMULATOR_NODE
+from followbot_sim.video import add_video_node, check_video_path, VideoPathError
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -93,13 +94,29 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help=f"save {CAMERA_PICTURE} (camera view with the follower's "
                              f'overlay) and {OVERVIEW_PICTURE} (course from above with the '
                              'path driven) here while running')
+    parser.add_argument('--video', type=_video_path, default=None, metavar='FILE',
+                        help="write a video (.mp4 or .avi) of the follower's view with its "
+                             'overlay beside the course from above with the path driven, in '
+                             'simulated time: it plays at real speed however fast the run')
+    parser.add_argument('--video-period-s', type=float, default=None, metavar='SECONDS',
+                        help='simulated seconds between video frames (default: one frame per '
+                             'camera frame)')
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments
+    if options.video_period_s is not None and not options.video_period_s > 0:
+        parser.error('--video-period-s must be > 0')
     if options.duration < 0 or options.real_time_factor < 0 or options.report_period <= 0:
         parser.error('--duration and --real-time-factor must be >= 0, --report-period > 0')
     if options.domain_id is not None and not 0 <= options.domain_id <= 232:
         parser.error('--domain-id must be in 0..232')
     return options
+
+
+def _video_path(text: str) -> Path:
+    try:
+        return check_video_path(text)
+    except VideoPathError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 class ChildProcess:
@@ -298,6 +315,8 @@ def main(argv=None) -> int:
                           context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(monitor)
+    if options.video is not None:
+        add_video_node(executor, options.video, simulator_name, options.video_period_s)
     length = (f'{options.duration:g} s of simulated time' if options.duration
               else 'until Ctrl-C')
     pace = (f'real-time factor {options.real_time_factor:g}' if options.real_time_factor

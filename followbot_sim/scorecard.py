@@ -37,6 +37,7 @@ from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
+from followbot_sim.plots import write_plots
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS, SimulatorNode
 import rclpy
 from rclpy.context import Context
@@ -81,6 +82,8 @@ SCORECARD_SIM_PARAMETERS = ('course', 'lighting_zones', 'camera_noise_stddev_lev
                             'run_duration_s')
 # ROS log levels for the nodes: quiet by default, as several runs share one terminal.
 NODE_LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
+# Simulated seconds between the samples of a run's distance from the line and speed (plots).
+SAMPLE_PERIOD_S = 0.1
 # How a --sim-param error names the type a simulator parameter takes.
 TYPE_NAMES = {bool: 'a boolean (true or false)', int: 'an integer',
               float: 'a floating-point number', str: 'a string'}
@@ -302,6 +305,42 @@ class StuckDetector:
             self._samples.popleft()
         reference_s, reference_m = self._samples[0]
         return reference_s <= window_start_s and progress_m - reference_m < self._min_progress_m
+
+
+class RunSamples:
+    """The run's progress, distance from the line and speed, every SAMPLE_PERIOD_S."""
+
+    def __init__(self, period_s: float = SAMPLE_PERIOD_S):
+        """
+        Start with no sample.
+
+        :param period_s: simulated seconds between samples.
+        """
+        self._period_s = period_s
+        self._next_s = 0.0
+        self._columns = {'time_s': [], 'progress_m': [], 'distance_from_line_m': [],
+                         'speed_mps': []}
+
+    def take(self, world, tracker) -> None:
+        """
+        Take a sample if one is due by the world's time.
+
+        :param world: the simulated world (its time and the robot's true speed).
+        :param tracker: its LapTracker (progress along the line, distance from it).
+        """
+        if world.time_s + 1e-9 < self._next_s:
+            return
+        self._next_s = world.time_s + self._period_s
+        speed_mps, _ = world.robot_twist()
+        for name, value in (('time_s', world.time_s), ('progress_m', tracker.progress_m),
+                            ('distance_from_line_m', tracker.distance_from_line_m),
+                            ('speed_mps', speed_mps)):
+            # A millimetre, a millisecond: the JSON stays small.
+            self._columns[name].append(round(float(value), 3))
+
+    def as_dict(self) -> dict:
+        """Return the samples as columns: time_s, progress_m, distance_from_line_m, speed_mps."""
+        return {name: list(values) for name, values in self._columns.items()}
 
 
 def run_metrics(summary: dict, line_statistics: dict) -> dict:
@@ -547,9 +586,11 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
         world, tracker = simulator.world, simulator.lap_tracker
         time_limit_s = time_limit_s or default_time_limit_s(world.course.length_m)
         stuck = StuckDetector(stuck_after_s)
+        samples = RunSamples()
         start_s = time.monotonic()
         while True:
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+            samples.take(world, tracker)
             if tracker.laps_completed >= 1:
                 end_reason = END_LAP
             elif world.time_s >= time_limit_s:
@@ -573,6 +614,7 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
             'line_statistics': line_statistics,
             'wall_s': wall_s,
             'simulated_per_wall': summary['time_s'] / wall_s if wall_s > 0.0 else None,
+            'samples': samples.as_dict(),
             'camera': {'width_px': width_px, 'height_px': height_px,
                        'rate_hz': simulator.get_parameter('camera_rate_hz').value,
                        'noise_stddev_levels': world.camera_noise_stddev},
@@ -688,6 +730,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     output.add_argument('--json', type=Path, default=Path('scorecard.json'), metavar='PATH',
                         help='where to write the results as JSON (default: scorecard.json)')
     output.add_argument('--no-json', action='store_true', help='write no JSON file')
+    parser.add_argument('--plots', type=Path, default=None, metavar='DIR',
+                        help='also draw PNG plots here: lap times, and for each scenario the '
+                             'distance from the line and the speed along the course')
     parser.add_argument('--node-log-level', choices=NODE_LOG_LEVELS, default='error',
                         help="the nodes' ROS log level (default: error)")
     refuse_ros_arguments(parser, argv, 'it starts its own nodes; give follower parameters as a '
@@ -699,6 +744,13 @@ def parse_arguments(argv=None) -> argparse.Namespace:
         options.sim_parameters = [parse_sim_parameter(text) for text in options.sim_param]
     except (ValueError, FileNotFoundError) as error:
         parser.error(str(error))
+    if options.plots is not None:
+        # Before the runs, not after minutes of them.
+        try:
+            options.plots.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            parser.error(f'--plots: cannot make folder {options.plots}: '
+                         f'{error.strerror or error}.')
     runs = len(options.scenarios) * len(options.configurations)
     options.workers = min(options.jobs, runs)
     if options.domain_id is None:
@@ -832,6 +884,10 @@ def main(argv=None) -> int:
         document = {'metadata': _metadata(options, argv, wall_s), 'runs': records}
         options.json.write_text(json.dumps(document, indent=2) + '\n', encoding='utf-8')
         print(f'[{PROGRAM}] results in {options.json}', file=sys.stderr, flush=True)
+    if options.plots is not None:
+        paths = write_plots(records, options.plots)
+        print(f'[{PROGRAM}] {_count(len(paths), "plot")} in {options.plots}/', file=sys.stderr,
+              flush=True)
     return 1 if any(record['end_reason'] == END_ERROR for record in records) else 0
 
 
