@@ -295,7 +295,7 @@ def _node_command(module: str, ros_arguments: list, parameters: dict) -> list:
     return command
 
 
-def _follower_arguments(namespace: str, robot: str, config: Path | None,
+def follower_arguments(namespace: str, robot: str, config: Path | None,
                         node_arguments: list) -> list:
     """
     Return the ROS arguments of one robot's follower: its namespace and configuration first.
@@ -420,7 +420,7 @@ def main(argv=None) -> int:
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     followers = [ChildProcess('follower' + (f' {name}' if name else ''), _node_command(
-        'followbot.follower_node', _follower_arguments(namespace, name, config, node_arguments),
+        'followbot.follower_node', follower_arguments(namespace, name, config, node_arguments),
         {'use_sim_time': 'true'}), environment)
         for name, (_, config) in zip(names, options.configs or [(None, None)] * len(names))]
     children = (simulator, *followers)
