@@ -64,9 +64,9 @@ SIMULATOR_PARAMETERS = {
     'robots': ParameterSpec(
         1, f'Robots in the world: a count (1..{MAX_ROBOTS}; 1 is the single robot with plain '
         'topic and frame names, N > 1 names them r1..rN) or a list of names such as [r1,r2]. '
-        "A named robot's topics, services of its own and /tf frames are prefixed with its "
-        'name (r1/cmd_vel, r1/base_footprint); /clock, /diagnostics and the services are '
-        'shared.', read_only=True, dynamic_typing=True),
+        "A named robot's topics and /tf frames are prefixed with its name (r1/cmd_vel, "
+        'r1/base_footprint); /clock, /diagnostics, overview/image and the services are shared.',
+        read_only=True, dynamic_typing=True),
     'robot_spacing_m': ParameterSpec(
         DEFAULT_ROBOT_SPACING_M, 'Robots start one behind the other along the line, this far '
         'apart (centre to centre).', MIN_ROBOT_SPACING_M, 10.0, read_only=True),
