@@ -499,20 +499,19 @@ class SimulatorNode(Node):
     def cmd_vel_type_check_callback(self) -> None:
         """Warn once per type when cmd_vel has publishers this node cannot hear."""
         expected = TWIST_TYPES[self._cmd_vel_stamped]
-        for topic, info in ((robot.cmd_vel_subscription.topic_name, info)
-                            for robot in self._robots
-                            for info in self.get_publishers_info_by_topic(
-                                robot.cmd_vel_subscription.topic_name)):
-            if info.topic_type == expected or info.topic_type in (
-                    self._wrong_cmd_vel_types_reported):
-                continue
-            self._wrong_cmd_vel_types_reported.add(info.topic_type)
-            stamped = info.topic_type == TWIST_TYPES[True]
-            self.get_logger().error(
-                f'{info.node_namespace.rstrip("/")}/{info.node_name} publishes {topic} as '
-                f'{info.topic_type}, but this simulator takes {expected}: those commands never '
-                f'arrive. Restart with -p cmd_vel_stamped:={str(stamped).lower()} or change '
-                'the publisher.')
+        for robot in self._robots:
+            topic = robot.cmd_vel_subscription.topic_name
+            for info in self.get_publishers_info_by_topic(topic):
+                if info.topic_type == expected or info.topic_type in (
+                        self._wrong_cmd_vel_types_reported):
+                    continue
+                self._wrong_cmd_vel_types_reported.add(info.topic_type)
+                stamped = info.topic_type == TWIST_TYPES[True]
+                self.get_logger().error(
+                    f'{info.node_namespace.rstrip("/")}/{info.node_name} publishes {topic} as '
+                    f'{info.topic_type}, but this simulator takes {expected}: those commands '
+                    f'never arrive. Restart with -p cmd_vel_stamped:={str(stamped).lower()} '
+                    'or change the publisher.')
 
     def pause_callback(self, request: SetBool.Request, response: SetBool.Response):
         """Pause (``data: true``) or resume (``data: false``) simulated time."""
