@@ -296,7 +296,7 @@ def _node_command(module: str, ros_arguments: list, parameters: dict) -> list:
 
 
 def follower_arguments(namespace: str, robot: str, config: Path | None,
-                        node_arguments: list) -> list:
+                       node_arguments: list) -> list:
     """
     Return the ROS arguments of one robot's follower: its namespace and configuration first.
 

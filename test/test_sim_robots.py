@@ -1,5 +1,5 @@
 """
-The simulator with several robots, over real DDS: each robot's topics, frames and score are its own.
+The simulator with several robots over real DDS: each robot's topics, frames and score its own.
 
 A client node commands one robot and listens to both, as a ROS user would with ``ros2 topic``.
 """
