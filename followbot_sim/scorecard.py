@@ -80,6 +80,8 @@ LIGHT_NOISE_SEED = 1
 SCORECARD_SIM_PARAMETERS = ('course', 'lighting_zones', 'camera_noise_stddev_levels',
                             'random_seed', 'real_time_factor', 'lockstep', 'start_paused',
                             'run_duration_s')
+# The scorecard scores one robot per run, its follower on the single robot's topics.
+MULTI_ROBOT_SIM_PARAMETERS = ('robots', 'robot_spacing_m')
 # ROS log levels for the nodes: quiet by default, as several runs share one terminal.
 NODE_LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
 # Simulated seconds between the samples of a run's distance from the line and speed (plots).
@@ -242,8 +244,13 @@ def parse_sim_parameter(text: str) -> tuple:
     if name in SCORECARD_SIM_PARAMETERS:
         raise ValueError(f'Simulator parameter {name!r} is set by the scorecard for every run '
                          '(scenario or pacing); choose a scenario instead.')
+    if name in MULTI_ROBOT_SIM_PARAMETERS:
+        raise ValueError(f'Simulator parameter {name!r} is not for the scorecard, which scores '
+                         'one robot per run: race configurations on one course with '
+                         '`followbot --robots N --configs A,B` instead.')
     if name not in SIMULATOR_PARAMETERS:
-        settable = sorted(set(SIMULATOR_PARAMETERS) - set(SCORECARD_SIM_PARAMETERS))
+        settable = sorted(set(SIMULATOR_PARAMETERS) - set(SCORECARD_SIM_PARAMETERS)
+                          - set(MULTI_ROBOT_SIM_PARAMETERS))
         raise ValueError(f'Unknown simulator parameter {name!r}: give one of '
                          f'{", ".join(settable)}.')
     spec = SIMULATOR_PARAMETERS[name]
