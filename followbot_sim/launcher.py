@@ -29,7 +29,7 @@ from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
-from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS
+from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.video import add_video_node, check_video_path, VideoPathError
 import rclpy
 from rclpy.context import Context
@@ -334,6 +334,19 @@ def follower_arguments(namespace: str, robot: str, config: Path | None,
     return ([ROS_ARGS_FLAG, *own, ROS_ARGS_END] if own else []) + list(node_arguments)
 
 
+def follower_parameters(lockstep: bool | None) -> dict:
+    """
+    Return the parameters the launcher gives each follower.
+
+    :param lockstep: whether the simulator runs in lockstep.
+    :return: name -> value as ``-p`` takes it.
+    """
+    parameters = {'use_sim_time': 'true'}
+    if lockstep:
+        parameters['image_timeout_s'] = str(LOCKSTEP_IMAGE_TIMEOUT_S)
+    return parameters
+
+
 def _clock_taken(monitor: Node, executor, clock_topic: str) -> bool:
     """Tell whether some node publishes the clock topic, waiting for discovery a moment."""
     deadline = time.monotonic() + CLOCK_DISCOVERY_S
@@ -440,7 +453,7 @@ def main(argv=None) -> int:
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     followers = [ChildProcess('follower' + (f' {name}' if name else ''), _node_command(
         'followbot.follower_node', follower_arguments(namespace, name, config, node_arguments),
-        {'use_sim_time': 'true'}), environment)
+        follower_parameters(options.lockstep)), environment)
         for name, (_, config) in zip(names, options.configs or [(None, None)] * len(names))]
     children = (simulator, *followers)
     try:

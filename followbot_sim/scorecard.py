@@ -132,6 +132,12 @@ class Configuration:
     params_file: Path
 
 
+# In lockstep, simulated time, and so the robot, moves on only after the follower answers each
+# frame: a slow simulator never leaves the robot driving blind. The follower's wall-time camera
+# watchdog (0.5 s by default, for real robots and real time) would only stop the robot whenever
+# the machine is loaded, and make lockstep runs depend on the load; these runs give it its
+# longest setting, so it still catches a simulator that died.
+LOCKSTEP_IMAGE_TIMEOUT_S = 10.0
 SCENARIOS = {
     **{name: Scenario(name, name) for name in COURSES},
     'book_loop_light_noise': Scenario(
@@ -583,7 +589,8 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
             scenario, sim_parameters))
         nodes.append(simulator)
         follower = FollowerNode(context=context, parameter_overrides=[
-            Parameter('use_sim_time', value=True)])
+            Parameter('use_sim_time', value=True),
+            Parameter('image_timeout_s', value=LOCKSTEP_IMAGE_TIMEOUT_S)])
         nodes.append(follower)
         # Simulated time starts only once both ends are connected: no lap time is spent
         # waiting for discovery with the robot standing still.

@@ -125,3 +125,14 @@ def test_each_racing_follower_runs_in_its_robots_namespace_under_the_users():
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize('lockstep, expected', [
+    (None, {'use_sim_time': 'true'}),
+    (False, {'use_sim_time': 'true'}),
+    (True, {'use_sim_time': 'true', 'image_timeout_s': '10.0'}),
+])
+def test_followers_of_a_lockstep_run_wait_for_a_loaded_simulator(lockstep, expected):
+    # In lockstep the robot moves only after each answer: the wall-time watchdog gets its
+    # longest setting there, so that runs do not depend on the machine's load.
+    assert launcher.follower_parameters(lockstep) == expected
