@@ -99,7 +99,7 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'shared memory every SECONDS of wall time, print the table at the '
                              "end and fail when a node's memory grew by more than "
                              f'{soak.RSS_GROWTH_LIMIT_KB / 1024:g} MiB after the warm-up '
-                             f'(the first {soak.WARM_UP_FRACTION:.0%} of the run, at least '
+                             f'(the first {100 * soak.WARM_UP_FRACTION:g} %% of the run, at least '
                              f'{soak.WARM_UP_MIN_S:g} s)')
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments

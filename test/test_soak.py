@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 from conftest import child_environment, run_domain_id
-from followbot_sim import soak
+from followbot_sim import launcher, soak
 import pytest
 
 MIB_KB = 1024
@@ -123,3 +123,18 @@ def test_five_minute_soak_of_both_nodes_keeps_memory_flat():
     assert len(rows) >= SOAK_DURATION_S / SOAK_PERIOD_S - 2
     # The robot lapped the course meanwhile (a lap takes about 107 s).
     assert int(rows[-1].split('|')[2]) >= 1
+
+
+def test_help_describes_the_soak_option(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        launcher.parse_arguments(['--help'])
+    assert exit_info.value.code == 0
+    assert 'first 20 % of the run, at least 120 s' in ' '.join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize('arguments', [['--soak-period', '0'],
+                                       ['--soak-period', '10', '--duration', '0']])
+def test_soak_needs_a_positive_period_and_a_duration(arguments, capsys):
+    with pytest.raises(SystemExit):
+        launcher.parse_arguments(arguments)
+    assert '--soak-period must be > 0 and needs a --duration' in capsys.readouterr().err
