@@ -56,6 +56,11 @@ LINE_PIXEL_COVERAGE = 0.5
 # paint (a corner), not across a gap.
 MIN_PASSAGE_PAINT = MIN_SECTION_PAINT * LINE_PIXEL_COVERAGE
 
+# Paint farther than this many line widths from the traced centre line belongs to no part of the
+# loop (an L corner's outer pixel lies 0.71 widths from its vertex): a branch, refused.
+MAX_OFF_LOOP_WIDTHS = 1.0
+# Sub-pixel precision of the loop drawn for that test (cv2's fixed-point drawing).
+BRANCH_DRAW_SHIFT_BITS = 4
 # The start pose must be this close to a line pixel.
 MAX_START_DISTANCE_M = 0.5
 # Centre-line points this much farther from the start pose than the nearest tie with it (where
@@ -77,6 +82,9 @@ SECTION_HALF_WIDTHS = 1.0
 # Paint within this many pixels outside a section's line-pixel run belongs to its soft edges
 # (anti-aliasing plus bilinear sampling).
 EDGE_FUZZ_PX = 2.0
+# A section reaches at least this far past a line's soft edges, so that on a line only a few
+# pixels wide (hard-edged 3-4 px) the edges do not touch the section's ends as a crossing would.
+MIN_SECTION_MARGIN_PX = 1.0
 # A cross-section of a clean stretch of line holds between these shares of a line width.
 FULL_SECTION_WIDTHS = 0.75
 MAX_SECTION_WIDTHS = 1.5
@@ -208,6 +216,7 @@ def course_from_image(image, floor_size_m, start_pose=None, name='image', line_w
     runs, closed_by_run = tracer.trace(seed_px, seed_heading,
                                        np.count_nonzero(line_pixels) / width_px)
     loop_px = tracer.join_runs(runs, closed_by_run)
+    _check_no_branches(line_pixels, loop_px, tracer.line_width_px(), px_per_m)
     loop_xy = np.stack(texture_px_to_world(loop_px[:, 0], loop_px[:, 1], size_px,
                                            floor_size_m), axis=1)
     measured_width_m = tracer.line_width_px() / px_per_m
@@ -216,6 +225,41 @@ def course_from_image(image, floor_size_m, start_pose=None, name='image', line_w
     ordered_xy = _loop_from_start(loop_xy, start_xy, forward_xy)
     return Course(ordered_xy, line_width_m=course_width_m, floor_size_m=floor_size_m,
                   name=name, floor_image_rgb=image_rgb)
+
+
+def _check_no_branches(line_pixels, loop_px, width_px, px_per_m):
+    """
+    Refuse paint that the traced loop does not run along: a Y-junction's other branch, a spur.
+
+    The march passes junctions straight on, so it closes a loop along one branch and never
+    sees the others; a robot on such a track would choose a branch the course does not score.
+
+    :param line_pixels: boolean mask of the line pixels.
+    :param loop_px: (N, 2) points of the traced closed centre line as (column, row).
+    :param width_px: the line width in pixels.
+    :param px_per_m: image pixels per metre of floor.
+    :raises ValueError: if a patch of paint at least a line width square lies farther than
+        ``MAX_OFF_LOOP_WIDTHS`` line widths from the loop.
+    """
+    shift = 1 << BRANCH_DRAW_SHIFT_BITS
+    near_loop = np.zeros(line_pixels.shape, dtype=np.uint8)
+    reach_px = MAX_OFF_LOOP_WIDTHS * width_px
+    cv2.polylines(near_loop, [np.round(loop_px * shift).astype(np.int32)], True, 1,
+                  2 * int(math.ceil(reach_px)) + 1, cv2.LINE_8, shift=BRANCH_DRAW_SHIFT_BITS)
+    off_loop = (line_pixels & (near_loop == 0)).astype(np.uint8)
+    count, _, stats, centroids = cv2.connectedComponentsWithStats(off_loop, connectivity=8)
+    min_area_px = max(width_px * width_px, 1.0)
+    patches = [index for index in range(1, count)
+               if stats[index, cv2.CC_STAT_AREA] >= min_area_px]
+    if patches:
+        largest = max(patches, key=lambda index: stats[index, cv2.CC_STAT_AREA])
+        column, row = centroids[largest]
+        branch_m = stats[largest, cv2.CC_STAT_AREA] / width_px / px_per_m
+        raise ValueError(
+            f'the line branches: {branch_m:.2f} m of line around pixel (column {column:.0f}, '
+            f'row {row:.0f}) is off the loop '
+            'traced (a Y-junction, a spur or a second line); a course must be one closed '
+            'loop, which may cross itself but not fork.')
 
 
 def _checked_pose(pose):
@@ -454,8 +498,11 @@ class _Tracer:
         # A zero border lets samples off the image read as floor without bounds checks.
         self._coverage = np.pad(coverage, 2)
         self._width_px = width_px
+        self._px_per_m = px_per_m
         self._step_px = max(min(STEP_M * px_per_m, MAX_STEP_WIDTHS * width_px), MIN_STEP_PX)
-        half_px = SECTION_HALF_WIDTHS * width_px
+        # A thin line's soft edges are as wide as a thick one's: the section reaches past them.
+        half_px = max(SECTION_HALF_WIDTHS * width_px,
+                      width_px / 2.0 + EDGE_FUZZ_PX + MIN_SECTION_MARGIN_PX)
         sample_count = int(math.ceil(half_px / SECTION_SAMPLE_PX))
         self._offsets_px = np.arange(-sample_count, sample_count + 1) * SECTION_SAMPLE_PX
         self._fuzz_samples = int(round(EDGE_FUZZ_PX / SECTION_SAMPLE_PX))
@@ -674,7 +721,8 @@ class _Tracer:
             if travelled_px > max_travel_px:
                 raise ValueError(
                     f'the trace ran {travelled_px / self._px_per_m:.1f} m without returning to '
-                    'its start; check that the line is one closed loop.')
+                    'its start; check that the line is one closed loop that does not fork (a '
+                    'Y-junction or a spur sends the trace round again).')
             from_seed = point - seed
             along_px = float(np.dot(from_seed, seed_heading))
             lateral_px = abs(float(seed_heading[0] * from_seed[1]
