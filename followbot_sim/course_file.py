@@ -17,7 +17,8 @@ floor frame (origin at the floor centre, x east, y north)::
         - {straight_m: 2.0}
         - {arc_radius_m: 1.0, arc_angle_deg: 90}      # positive = left turn
     image:
-      file: course.png            # an image of the whole floor, relative to the YAML file
+      file: course.png            # an image of the whole floor, relative to the YAML file:
+                                  # PNG or JPEG, square, at most 4096x4096 px
       start: [x_m, y_m, yaw_deg]  # optional: where the robot starts, heading along the line
     dashes: {dash_length_m: 0.3, gap_length_m: 0.15}                            # optional
     distractors: [{x_m: .., y_m: .., length_m: .., width_m: .., yaw_deg: ..}]  # optional

@@ -30,12 +30,25 @@ across the tangent of that loop and the loop is rebuilt once more.
 import collections
 import math
 import pathlib
+import struct
 
 import cv2
 from followbot_sim.course import Course
 from followbot_sim.course import texture_px_to_world
 from followbot_sim.course import world_to_texture_px
 import numpy as np
+
+# Largest course image side read, checked in the file's header before decoding: 4096 px is
+# 2.4 mm a pixel on the book's 10 m floor (finer than any camera sees it), ~50 MB decoded and a
+# trace of seconds. A 20000 px image would take minutes and gigabytes.
+MAX_IMAGE_SIDE_PX = 4096
+PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
+JPEG_SIGNATURE = b'\xff\xd8'
+# JPEG start-of-frame markers (baseline, progressive, ...): they carry the image size. The
+# others of 0xC0-0xCF are DHT (C4), JPG (C8) and DAC (CC).
+JPEG_START_OF_FRAME = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+# Markers without a length field: TEM, RST0-7.
+JPEG_STANDALONE_MARKERS = frozenset([0x01, *range(0xD0, 0xD8)])
 
 # Yellow in OpenCV's 0-179 hue scale (60 degrees); the book's RGB(255, 246, 0) has hue 29.
 YELLOW_HUE = 30
@@ -175,9 +188,10 @@ def course_from_image(image, floor_size_m, start_pose=None, name='image', line_w
     :param line_width_m: width of the line in metres; measured from the image when None.
     :return: the course, carrying the image as its floor.
     :raises FileNotFoundError: if ``image`` is a path to no file.
-    :raises ValueError: if the image cannot be read or is not square, holds no yellow line, the
-        start pose is farther than ``MAX_START_DISTANCE_M`` from the line, or the line does not
-        close into a loop.
+    :raises ValueError: if the image cannot be read, is not square or larger than
+        ``MAX_IMAGE_SIDE_PX`` a side (checked in a file's header before decoding), holds no
+        yellow line or a line that forks, the start pose is farther than
+        ``MAX_START_DISTANCE_M`` from the line, or the line does not close into a loop.
     """
     if not (math.isfinite(floor_size_m) and floor_size_m > 0.0):
         raise ValueError(f'floor_size_m must be positive and finite, got {floor_size_m}.')
@@ -294,6 +308,7 @@ def _read_rgb(image):
         path = pathlib.Path(image)
         if not path.is_file():
             raise FileNotFoundError(f'no course image file at {str(path)!r}.')
+        _check_image_size(image_header_size(path), repr(str(path)))
         # IMREAD_COLOR drops alpha, expands grey and reduces 16-bit images to 8 bits.
         image_bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if image_bgr is None:
@@ -307,14 +322,76 @@ def _read_rgb(image):
             raise ValueError(
                 'a course image array must be RGB uint8 of shape (N, N, 3), got '
                 f'{image_rgb.dtype} of shape {image_rgb.shape}.')
-        image_rgb = np.ascontiguousarray(image_rgb)
         source = 'the image array'
+        _check_image_size(image_rgb.shape[1::-1], source)
+        image_rgb = np.ascontiguousarray(image_rgb)
     height_px, width_px = image_rgb.shape[:2]
     if height_px != width_px:
         raise ValueError(
             f'{source} is {width_px}x{height_px} px; a course image must be square because '
             'it covers the whole square floor.')
     return image_rgb
+
+
+def image_header_size(path):
+    """
+    Read a PNG's or JPEG's size from its header, without decoding the image.
+
+    :param path: the file's path.
+    :return: ``(width_px, height_px)``.
+    :raises ValueError: if the file is neither a PNG nor a JPEG, or its header is cut short.
+    """
+    unreadable = ValueError(f'cannot read {str(path)!r} as an image; give a PNG or JPEG file.')
+    with open(path, 'rb') as image_file:
+        start = image_file.read(len(PNG_SIGNATURE))
+        if start == PNG_SIGNATURE:
+            # The first chunk is IHDR: length, type, then width and height, big-endian.
+            header = image_file.read(16)
+            if len(header) < 16 or header[4:8] != b'IHDR':
+                raise unreadable
+            return struct.unpack('>II', header[8:16])
+        if not start.startswith(JPEG_SIGNATURE):
+            raise unreadable
+        image_file.seek(len(JPEG_SIGNATURE))
+        while True:
+            marker = image_file.read(2)
+            if len(marker) < 2 or marker[0] != 0xFF:
+                raise unreadable
+            if marker[1] == 0xFF:
+                # Fill bytes before a marker.
+                image_file.seek(-1, 1)
+                continue
+            if marker[1] in JPEG_STANDALONE_MARKERS:
+                continue
+            length_bytes = image_file.read(2)
+            if len(length_bytes) < 2:
+                raise unreadable
+            (length,) = struct.unpack('>H', length_bytes)
+            if marker[1] in JPEG_START_OF_FRAME:
+                # Precision (1 byte), then height and width.
+                frame = image_file.read(5)
+                if len(frame) < 5:
+                    raise unreadable
+                height_px, width_px = struct.unpack('>HH', frame[1:5])
+                return width_px, height_px
+            if length < 2:
+                raise unreadable
+            image_file.seek(length - 2, 1)
+
+
+def _check_image_size(size_px, source):
+    """
+    Refuse an image too large to trace in reasonable time and memory.
+
+    :param size_px: ``(width_px, height_px)``.
+    :param source: how to name the image in the message.
+    :raises ValueError: if a side exceeds ``MAX_IMAGE_SIDE_PX`` or is zero.
+    """
+    width_px, height_px = size_px
+    if not (0 < width_px <= MAX_IMAGE_SIDE_PX and 0 < height_px <= MAX_IMAGE_SIDE_PX):
+        raise ValueError(
+            f'{source} is {width_px}x{height_px} px; a course image may be at most '
+            f'{MAX_IMAGE_SIDE_PX}x{MAX_IMAGE_SIDE_PX} px; scale it down.')
 
 
 def _line_coverage(image_rgb):

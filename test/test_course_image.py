@@ -2,6 +2,8 @@
 
 import collections
 import math
+import struct
+import zlib
 
 import cv2
 from followbot_sim.course import BOOK_FLOOR_SIZE_M
@@ -369,3 +371,33 @@ def test_a_y_junction_is_refused_rather_than_traced_as_one_loop(start_pose):
     with pytest.raises(ValueError, match=r'the line branches: \d\.\d\d m of line around pixel'):
         course_from_image(ellipse_with_branch_image(branch_end_xy), BOOK_FLOOR_SIZE_M,
                           start_pose=start_pose)
+
+
+def png_header_only(path, width_px, height_px):
+    """Write the start of a PNG, signature and IHDR, claiming a size; no pixels follow."""
+    header = struct.pack('>IIBBBBB', width_px, height_px, 8, 2, 0, 0, 0)
+    path.write_bytes(b'\x89PNG\r\n\x1a\n' + struct.pack('>I', len(header)) + b'IHDR' + header
+                     + struct.pack('>I', zlib.crc32(b'IHDR' + header)))
+    return path
+
+
+def test_an_oversized_png_is_refused_from_its_header_before_decoding(tmp_path):
+    # 20000 x 20000 px would take minutes and gigabytes to decode and trace.
+    path = png_header_only(tmp_path / 'huge.png', 20000, 20000)
+    with pytest.raises(ValueError, match=r"huge.png' is 20000x20000 px; a course image may be "
+                                         r'at most 4096x4096 px; scale it down\.'):
+        course_from_image(path, BOOK_FLOOR_SIZE_M)
+
+
+@pytest.mark.parametrize('suffix', ['.png', '.jpg'])
+def test_an_image_just_over_the_limit_is_refused(tmp_path, suffix):
+    path = tmp_path / f'floor{suffix}'
+    cv2.imwrite(str(path), np.full((4097, 4097, 3), FLOOR_GREY, dtype=np.uint8))
+    with pytest.raises(ValueError, match='is 4097x4097 px; a course image may be at most'):
+        course_from_image(path, BOOK_FLOOR_SIZE_M)
+
+
+def test_an_array_over_the_limit_is_refused():
+    floor = np.broadcast_to(np.uint8(FLOOR_GREY), (4097, 4097, 3))
+    with pytest.raises(ValueError, match='the image array is 4097x4097 px'):
+        course_from_image(floor, BOOK_FLOOR_SIZE_M)
