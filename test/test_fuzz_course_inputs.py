@@ -1,6 +1,8 @@
 """
-Property-based tests of the course loaders: whatever a course file or image holds, the loader
-returns a course or raises ValueError with one line; never another exception.
+Property-based tests of the course loaders: a course or a one-line ValueError, nothing else.
+
+Whatever a course file or a course image holds, the loader returns a course or raises a
+ValueError whose message is one line (what a node logs when it cannot start).
 
 The number of examples is set by the hypothesis profile in conftest.py (``FOLLOWBOT_FUZZ_EXAMPLES``
 for a longer, random run).
@@ -108,8 +110,8 @@ def test_a_damaged_png_loads_or_fails_in_one_line(tmp_path, data):
 
 
 @given(strategies.integers(1, 300), strategies.integers(-3, 40), strategies.integers(0, 200))
-def test_any_small_ring_image_loads_or_fails_in_one_line(tmp_path, size_px, thickness_px,
-                                                          radius_px):
+def test_any_small_ring_image_loads_or_fails_in_one_line(
+        tmp_path, size_px, thickness_px, radius_px):
     path = tmp_path / IMAGE_FILE
     path.write_bytes(small_line_image(size_px, thickness_px, radius_px))
     assert_course_or_one_line(course_from_image, path, FLOOR_SIZE_M)
