@@ -28,6 +28,10 @@ WHEELS_STOP_WITHIN_S = 10.0
 DRIVING_MPS = 0.05
 STOPPED_MPS = 0.005
 COMMANDS_AFTER_RESTART = 20
+# The robot has driven this far before the follower is killed, so that a simulator that reset
+# its world would put it visibly back; standing still, it moves less than STILL_M.
+FAR_FROM_START_M = 1.0
+STILL_M = 0.01
 
 
 class RobotWatcher:
@@ -38,6 +42,17 @@ class RobotWatcher:
         self.ground_truth = []
         node.create_subscription(Twist, 'cmd_vel', self.commands.append, 50)
         node.create_subscription(Odometry, 'ground_truth/odom', self.ground_truth.append, 50)
+
+    def position(self) -> tuple:
+        """Return the robot's latest true (x, y) on the floor."""
+        position = self.ground_truth[-1].pose.pose.position
+        return position.x, position.y
+
+    @property
+    def first_position(self) -> tuple:
+        """Return where the simulator first saw the robot."""
+        position = self.ground_truth[0].pose.pose.position
+        return position.x, position.y
 
     def speed_mps(self) -> float | None:
         """Return the robot's latest true speed over the floor, or None before any."""
@@ -86,19 +101,25 @@ def test_a_killed_follower_stops_the_robot_and_a_new_one_drives_it_again(ros_con
     follower = start_follower(environment)
     node, executor, watcher = watcher_node(ros_context)
     try:
-        assert spin_until(executor, watcher.driving, DISCOVERY_TIMEOUT_S), (
-            f'speed {watcher.speed_mps()}, {len(watcher.commands)} commands')
+        assert spin_until(executor, lambda: watcher.driving() and math.dist(
+            watcher.position(), watcher.first_position) > FAR_FROM_START_M,
+            DISCOVERY_TIMEOUT_S), f'speed {watcher.speed_mps()}, {len(watcher.commands)} commands'
         kill_outright(follower)
         # No zero Twist came from the dead follower: the simulator's watchdog stops the wheels.
         assert watcher.commands[-1].linear.x > 0.0
         assert spin_until(executor, lambda: watcher.speed_mps() < STOPPED_MPS,
                           WHEELS_STOP_WITHIN_S), f'speed {watcher.speed_mps()}'
+        stopped_at = watcher.position()
+        restart_index = len(watcher.ground_truth)
         follower = start_follower(environment)
         commands_before = len(watcher.commands)
         assert spin_until(executor, lambda: watcher.driving() and len(watcher.commands)
                           >= commands_before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S), (
             f'speed {watcher.speed_mps()}, {len(watcher.commands) - commands_before} commands')
         assert simulator.poll() is None
+        # The simulator kept its world: the robot drove on from where it had stopped.
+        restarted_at = watcher.ground_truth[restart_index].pose.pose.position
+        assert math.dist(stopped_at, (restarted_at.x, restarted_at.y)) < STILL_M
         assert stop_process(follower) == 0
         assert stop_process(simulator) == 0
     finally:
