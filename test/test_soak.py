@@ -60,8 +60,8 @@ def test_a_node_gone_after_warm_up_cannot_be_judged():
         soak.memory_verdicts(samples, warm_up_end_s=120)
 
 
-@pytest.mark.parametrize('duration_s, expected_s', [(60, 120), (300, 120), (1800, 360)])
-def test_warm_up_is_a_fifth_of_the_run_and_at_least_two_minutes(duration_s, expected_s):
+@pytest.mark.parametrize('duration_s, expected_s', [(60, 150), (300, 150), (1800, 360)])
+def test_warm_up_is_a_fifth_of_the_run_and_at_least_two_and_a_half_minutes(duration_s, expected_s):
     assert soak.warm_up_s(duration_s) == expected_s
 
 
@@ -121,7 +121,7 @@ def test_five_minute_soak_of_both_nodes_keeps_memory_flat():
     rows = [line for line in output.splitlines() if line.startswith('| ') and
             line[2].isdigit()]
     assert len(rows) >= SOAK_DURATION_S / SOAK_PERIOD_S - 2
-    # The robot lapped the course meanwhile (a lap takes about 107 s).
+    # The robot lapped the course meanwhile (a lap of book_loop takes ~32 s at 0.7 m/s).
     assert int(rows[-1].split('|')[2]) >= 1
 
 
@@ -129,7 +129,7 @@ def test_help_describes_the_soak_option(capsys):
     with pytest.raises(SystemExit) as exit_info:
         launcher.parse_arguments(['--help'])
     assert exit_info.value.code == 0
-    assert 'first 20 % of the run, at least 120 s' in ' '.join(capsys.readouterr().out.split())
+    assert 'first 20 % of the run, at least 150 s' in ' '.join(capsys.readouterr().out.split())
 
 
 @pytest.mark.parametrize('arguments', [['--soak-period', '0'],
