@@ -3,12 +3,14 @@
 #   make test   - set up .venv, then run the whole test suite (what CI runs)
 #   make scorecard - score the follower and the book's controller on every built-in course
 #   make benchmark - perception time, camera-to-cmd_vel latency and simulator speed, measured
+#   make soak      - 30 minutes of laps: both nodes' memory, open files and /dev/shm over time
 # Set-up is done once and redone only when a requirements file, setup.py or config/tf2_msgs
 # changes.
 
 PYTHON ?= python3
 VENV ?= .venv
 DEMO_ARGS ?= --duration 240 --pictures-dir pictures
+SOAK_ARGS ?= --duration 1800 --soak-period 60 --report-period 300
 STAMP := $(VENV)/.followbot-installed
 # tf2_msgs is not on PyPI: set-up builds our TFMessage-only stand-in (config/tf2_msgs) into the
 # venv with the Jazzy rosidl generators from PyPI, cmake and the system's C/C++ compiler.
@@ -28,7 +30,7 @@ HAS_PYTHON_HEADERS := import os, sysconfig; \
 	assert os.path.isfile(os.path.join(sysconfig.get_paths()['include'], 'Python.h'))
 LDCONFIG := $(shell command -v ldconfig || echo /sbin/ldconfig)
 
-.PHONY: demo test scorecard benchmark setup system-deps clean
+.PHONY: demo test scorecard benchmark soak setup system-deps clean
 
 demo: $(TF2_MSGS_STAMP)
 	$(VENV)/bin/followbot $(DEMO_ARGS)
@@ -41,6 +43,9 @@ scorecard: $(TF2_MSGS_STAMP)
 
 benchmark: $(TF2_MSGS_STAMP)
 	$(VENV)/bin/benchmark
+
+soak: $(TF2_MSGS_STAMP)
+	$(VENV)/bin/followbot $(SOAK_ARGS)
 
 setup: $(TF2_MSGS_STAMP)
 

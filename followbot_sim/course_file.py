@@ -17,7 +17,8 @@ floor frame (origin at the floor centre, x east, y north)::
         - {straight_m: 2.0}
         - {arc_radius_m: 1.0, arc_angle_deg: 90}      # positive = left turn
     image:
-      file: course.png            # an image of the whole floor, relative to the YAML file
+      file: course.png            # an image of the whole floor, relative to the YAML file:
+                                  # PNG or JPEG, square, at most 4096x4096 px
       start: [x_m, y_m, yaw_deg]  # optional: where the robot starts, heading along the line
     dashes: {dash_length_m: 0.3, gap_length_m: 0.15}                            # optional
     distractors: [{x_m: .., y_m: .., length_m: .., width_m: .., yaw_deg: ..}]  # optional
@@ -207,7 +208,8 @@ def load_course_file(path):
     try:
         document = yaml.safe_load(text)
     except yaml.YAMLError as error:
-        raise ValueError(f'course file {reader.path} is not valid YAML: {error}') from None
+        raise ValueError(
+            f'course file {reader.path} is not valid YAML: {_yaml_problem(error)}.') from None
     document = reader.mapping(document, 'top level', optional=_TOP_LEVEL_KEYS)
     name = document.get('name', reader.path.stem)
     if not isinstance(name, str) or not name:
@@ -227,6 +229,22 @@ def load_course_file(path):
     else:
         course = _image_course(reader, document['image'], name, floor_size_m, line_width_m)
     return _with_paint_options(reader, document, course)
+
+
+def _yaml_problem(error):
+    """
+    Say in one line what the YAML parser found wrong, and where.
+
+    PyYAML's own message spans several lines (it quotes the line with a caret under it); a
+    startup error is one log line.
+
+    :param error: the parser's exception.
+    :return: e.g. ``mapping values are not allowed here (line 2, column 6)``.
+    """
+    problem = getattr(error, 'problem', None) or str(error).splitlines()[0]
+    mark = getattr(error, 'problem_mark', None)
+    where = '' if mark is None else f' (line {mark.line + 1}, column {mark.column + 1})'
+    return ' '.join(f'{problem}{where}'.split())
 
 
 def _centre_line_course(reader, section, name, floor_size_m, line_width_m):

@@ -30,12 +30,25 @@ across the tangent of that loop and the loop is rebuilt once more.
 import collections
 import math
 import pathlib
+import struct
 
 import cv2
 from followbot_sim.course import Course
 from followbot_sim.course import texture_px_to_world
 from followbot_sim.course import world_to_texture_px
 import numpy as np
+
+# Largest course image side read, checked in the file's header before decoding: 4096 px is
+# 2.4 mm a pixel on the book's 10 m floor (finer than any camera sees it), ~50 MB decoded and a
+# trace of seconds. A 20000 px image would take minutes and gigabytes.
+MAX_IMAGE_SIDE_PX = 4096
+PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
+JPEG_SIGNATURE = b'\xff\xd8'
+# JPEG start-of-frame markers (baseline, progressive, ...): they carry the image size. The
+# others of 0xC0-0xCF are DHT (C4), JPG (C8) and DAC (CC).
+JPEG_START_OF_FRAME = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+# Markers without a length field: TEM, RST0-7.
+JPEG_STANDALONE_MARKERS = frozenset([0x01, *range(0xD0, 0xD8)])
 
 # Yellow in OpenCV's 0-179 hue scale (60 degrees); the book's RGB(255, 246, 0) has hue 29.
 YELLOW_HUE = 30
@@ -56,6 +69,11 @@ LINE_PIXEL_COVERAGE = 0.5
 # paint (a corner), not across a gap.
 MIN_PASSAGE_PAINT = MIN_SECTION_PAINT * LINE_PIXEL_COVERAGE
 
+# Paint farther than this many line widths from the traced centre line belongs to no part of the
+# loop (an L corner's outer pixel lies 0.71 widths from its vertex): a branch, refused.
+MAX_OFF_LOOP_WIDTHS = 1.0
+# Sub-pixel precision of the loop drawn for that test (cv2's fixed-point drawing).
+BRANCH_DRAW_SHIFT_BITS = 4
 # The start pose must be this close to a line pixel.
 MAX_START_DISTANCE_M = 0.5
 # Centre-line points this much farther from the start pose than the nearest tie with it (where
@@ -77,6 +95,9 @@ SECTION_HALF_WIDTHS = 1.0
 # Paint within this many pixels outside a section's line-pixel run belongs to its soft edges
 # (anti-aliasing plus bilinear sampling).
 EDGE_FUZZ_PX = 2.0
+# A section reaches at least this far past a line's soft edges, so that on a line only a few
+# pixels wide (hard-edged 3-4 px) the edges do not touch the section's ends as a crossing would.
+MIN_SECTION_MARGIN_PX = 1.0
 # A cross-section of a clean stretch of line holds between these shares of a line width.
 FULL_SECTION_WIDTHS = 0.75
 MAX_SECTION_WIDTHS = 1.5
@@ -167,9 +188,10 @@ def course_from_image(image, floor_size_m, start_pose=None, name='image', line_w
     :param line_width_m: width of the line in metres; measured from the image when None.
     :return: the course, carrying the image as its floor.
     :raises FileNotFoundError: if ``image`` is a path to no file.
-    :raises ValueError: if the image cannot be read or is not square, holds no yellow line, the
-        start pose is farther than ``MAX_START_DISTANCE_M`` from the line, or the line does not
-        close into a loop.
+    :raises ValueError: if the image cannot be read, is not square or larger than
+        ``MAX_IMAGE_SIDE_PX`` a side (checked in a file's header before decoding), holds no
+        yellow line or a line that forks, the start pose is farther than
+        ``MAX_START_DISTANCE_M`` from the line, or the line does not close into a loop.
     """
     if not (math.isfinite(floor_size_m) and floor_size_m > 0.0):
         raise ValueError(f'floor_size_m must be positive and finite, got {floor_size_m}.')
@@ -208,6 +230,7 @@ def course_from_image(image, floor_size_m, start_pose=None, name='image', line_w
     runs, closed_by_run = tracer.trace(seed_px, seed_heading,
                                        np.count_nonzero(line_pixels) / width_px)
     loop_px = tracer.join_runs(runs, closed_by_run)
+    _check_no_branches(line_pixels, loop_px, tracer.line_width_px(), px_per_m)
     loop_xy = np.stack(texture_px_to_world(loop_px[:, 0], loop_px[:, 1], size_px,
                                            floor_size_m), axis=1)
     measured_width_m = tracer.line_width_px() / px_per_m
@@ -216,6 +239,41 @@ def course_from_image(image, floor_size_m, start_pose=None, name='image', line_w
     ordered_xy = _loop_from_start(loop_xy, start_xy, forward_xy)
     return Course(ordered_xy, line_width_m=course_width_m, floor_size_m=floor_size_m,
                   name=name, floor_image_rgb=image_rgb)
+
+
+def _check_no_branches(line_pixels, loop_px, width_px, px_per_m):
+    """
+    Refuse paint that the traced loop does not run along: a Y-junction's other branch, a spur.
+
+    The march passes junctions straight on, so it closes a loop along one branch and never
+    sees the others; a robot on such a track would choose a branch the course does not score.
+
+    :param line_pixels: boolean mask of the line pixels.
+    :param loop_px: (N, 2) points of the traced closed centre line as (column, row).
+    :param width_px: the line width in pixels.
+    :param px_per_m: image pixels per metre of floor.
+    :raises ValueError: if a patch of paint at least a line width square lies farther than
+        ``MAX_OFF_LOOP_WIDTHS`` line widths from the loop.
+    """
+    shift = 1 << BRANCH_DRAW_SHIFT_BITS
+    near_loop = np.zeros(line_pixels.shape, dtype=np.uint8)
+    reach_px = MAX_OFF_LOOP_WIDTHS * width_px
+    cv2.polylines(near_loop, [np.round(loop_px * shift).astype(np.int32)], True, 1,
+                  2 * int(math.ceil(reach_px)) + 1, cv2.LINE_8, shift=BRANCH_DRAW_SHIFT_BITS)
+    off_loop = (line_pixels & (near_loop == 0)).astype(np.uint8)
+    count, _, stats, centroids = cv2.connectedComponentsWithStats(off_loop, connectivity=8)
+    min_area_px = max(width_px * width_px, 1.0)
+    patches = [index for index in range(1, count)
+               if stats[index, cv2.CC_STAT_AREA] >= min_area_px]
+    if patches:
+        largest = max(patches, key=lambda index: stats[index, cv2.CC_STAT_AREA])
+        column, row = centroids[largest]
+        branch_m = stats[largest, cv2.CC_STAT_AREA] / width_px / px_per_m
+        raise ValueError(
+            f'the line branches: {branch_m:.2f} m of line around pixel (column {column:.0f}, '
+            f'row {row:.0f}) is off the loop '
+            'traced (a Y-junction, a spur or a second line); a course must be one closed '
+            'loop, which may cross itself but not fork.')
 
 
 def _checked_pose(pose):
@@ -250,6 +308,7 @@ def _read_rgb(image):
         path = pathlib.Path(image)
         if not path.is_file():
             raise FileNotFoundError(f'no course image file at {str(path)!r}.')
+        _check_image_size(image_header_size(path), repr(str(path)))
         # IMREAD_COLOR drops alpha, expands grey and reduces 16-bit images to 8 bits.
         image_bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if image_bgr is None:
@@ -263,14 +322,76 @@ def _read_rgb(image):
             raise ValueError(
                 'a course image array must be RGB uint8 of shape (N, N, 3), got '
                 f'{image_rgb.dtype} of shape {image_rgb.shape}.')
-        image_rgb = np.ascontiguousarray(image_rgb)
         source = 'the image array'
+        _check_image_size(image_rgb.shape[1::-1], source)
+        image_rgb = np.ascontiguousarray(image_rgb)
     height_px, width_px = image_rgb.shape[:2]
     if height_px != width_px:
         raise ValueError(
             f'{source} is {width_px}x{height_px} px; a course image must be square because '
             'it covers the whole square floor.')
     return image_rgb
+
+
+def image_header_size(path):
+    """
+    Read a PNG's or JPEG's size from its header, without decoding the image.
+
+    :param path: the file's path.
+    :return: ``(width_px, height_px)``.
+    :raises ValueError: if the file is neither a PNG nor a JPEG, or its header is cut short.
+    """
+    unreadable = ValueError(f'cannot read {str(path)!r} as an image; give a PNG or JPEG file.')
+    with open(path, 'rb') as image_file:
+        start = image_file.read(len(PNG_SIGNATURE))
+        if start == PNG_SIGNATURE:
+            # The first chunk is IHDR: length, type, then width and height, big-endian.
+            header = image_file.read(16)
+            if len(header) < 16 or header[4:8] != b'IHDR':
+                raise unreadable
+            return struct.unpack('>II', header[8:16])
+        if not start.startswith(JPEG_SIGNATURE):
+            raise unreadable
+        image_file.seek(len(JPEG_SIGNATURE))
+        while True:
+            marker = image_file.read(2)
+            if len(marker) < 2 or marker[0] != 0xFF:
+                raise unreadable
+            if marker[1] == 0xFF:
+                # Fill bytes before a marker.
+                image_file.seek(-1, 1)
+                continue
+            if marker[1] in JPEG_STANDALONE_MARKERS:
+                continue
+            length_bytes = image_file.read(2)
+            if len(length_bytes) < 2:
+                raise unreadable
+            (length,) = struct.unpack('>H', length_bytes)
+            if marker[1] in JPEG_START_OF_FRAME:
+                # Precision (1 byte), then height and width.
+                frame = image_file.read(5)
+                if len(frame) < 5:
+                    raise unreadable
+                height_px, width_px = struct.unpack('>HH', frame[1:5])
+                return width_px, height_px
+            if length < 2:
+                raise unreadable
+            image_file.seek(length - 2, 1)
+
+
+def _check_image_size(size_px, source):
+    """
+    Refuse an image too large to trace in reasonable time and memory.
+
+    :param size_px: ``(width_px, height_px)``.
+    :param source: how to name the image in the message.
+    :raises ValueError: if a side exceeds ``MAX_IMAGE_SIDE_PX`` or is zero.
+    """
+    width_px, height_px = size_px
+    if not (0 < width_px <= MAX_IMAGE_SIDE_PX and 0 < height_px <= MAX_IMAGE_SIDE_PX):
+        raise ValueError(
+            f'{source} is {width_px}x{height_px} px; a course image may be at most '
+            f'{MAX_IMAGE_SIDE_PX}x{MAX_IMAGE_SIDE_PX} px; scale it down.')
 
 
 def _line_coverage(image_rgb):
@@ -454,8 +575,11 @@ class _Tracer:
         # A zero border lets samples off the image read as floor without bounds checks.
         self._coverage = np.pad(coverage, 2)
         self._width_px = width_px
+        self._px_per_m = px_per_m
         self._step_px = max(min(STEP_M * px_per_m, MAX_STEP_WIDTHS * width_px), MIN_STEP_PX)
-        half_px = SECTION_HALF_WIDTHS * width_px
+        # A thin line's soft edges are as wide as a thick one's: the section reaches past them.
+        half_px = max(SECTION_HALF_WIDTHS * width_px,
+                      width_px / 2.0 + EDGE_FUZZ_PX + MIN_SECTION_MARGIN_PX)
         sample_count = int(math.ceil(half_px / SECTION_SAMPLE_PX))
         self._offsets_px = np.arange(-sample_count, sample_count + 1) * SECTION_SAMPLE_PX
         self._fuzz_samples = int(round(EDGE_FUZZ_PX / SECTION_SAMPLE_PX))
@@ -674,7 +798,8 @@ class _Tracer:
             if travelled_px > max_travel_px:
                 raise ValueError(
                     f'the trace ran {travelled_px / self._px_per_m:.1f} m without returning to '
-                    'its start; check that the line is one closed loop.')
+                    'its start; check that the line is one closed loop that does not fork (a '
+                    'Y-junction or a spur sends the trace round again).')
             from_seed = point - seed
             along_px = float(np.dot(from_seed, seed_heading))
             lateral_px = abs(float(seed_heading[0] * from_seed[1]

@@ -26,6 +26,7 @@ from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_na
                                    StopSignals)
 from followbot.package_files import share_file
 from followbot.transport import environment_with_profile, keep_large_buffers
+from followbot_sim import soak
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
@@ -113,12 +114,21 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument('--video-period-s', type=float, default=None, metavar='SECONDS',
                         help='simulated seconds between video frames (default: one frame per '
                              'camera frame)')
+    parser.add_argument('--soak-period', type=float, default=None, metavar='SECONDS',
+                        help="soak test: sample both nodes' resident memory, open files and "
+                             'shared memory every SECONDS of wall time, print the table at the '
+                             "end and fail when a node's memory grew by more than "
+                             f'{soak.RSS_GROWTH_LIMIT_KB / 1024:g} MiB after the warm-up '
+                             f'(the first {100 * soak.WARM_UP_FRACTION:g} %% of the run, at least '
+                             f'{soak.WARM_UP_MIN_S:g} s)')
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments
     if options.video_period_s is not None and not options.video_period_s > 0:
         parser.error('--video-period-s must be > 0')
     if options.duration < 0 or options.real_time_factor < 0 or options.report_period <= 0:
         parser.error('--duration and --real-time-factor must be >= 0, --report-period > 0')
+    if options.soak_period is not None and (options.soak_period <= 0 or options.duration == 0):
+        parser.error('--soak-period must be > 0 and needs a --duration')
     if options.domain_id is not None and not 0 <= options.domain_id <= 232:
         parser.error('--domain-id must be in 0..232')
     try:
@@ -361,6 +371,35 @@ def _ros_boolean(flag) -> str | None:
     return None if flag is None else str(bool(flag)).lower()
 
 
+def _soak_sample(elapsed_s: float, children: tuple, summaries: dict) -> soak.SoakSample:
+    laps = sum(int(summary.get('laps_completed', 0)) for summary in summaries.values())
+    sample = soak.SoakSample(
+        elapsed_s, {child.name: soak.sample_process(child.process.pid) for child in children},
+        laps)
+    print('[soak] ' + soak.format_table([sample])[-1], flush=True)
+    return sample
+
+
+def _report_soak(samples: list) -> bool:
+    """Print the soak table and verdicts; return whether every node's memory stayed flat."""
+    print('[soak] Resident memory (RSS), open file descriptors and mapped /dev/shm files of '
+          'each node over wall time:', flush=True)
+    for line in soak.format_table(samples):
+        print(line, flush=True)
+    warm_up_end_s = soak.warm_up_s(samples[-1].elapsed_s if samples else 0.0)
+    try:
+        verdicts = soak.memory_verdicts(samples, warm_up_end_s)
+    except ValueError as error:
+        print(f'[soak] FAILED: {error}', flush=True)
+        return False
+    for verdict in verdicts:
+        print(f'[soak] {soak.format_verdict(verdict)} (warm-up {warm_up_end_s:.0f} s)',
+              flush=True)
+    passed = all(verdict.passed for verdict in verdicts)
+    print(f"[soak] {'PASSED' if passed else 'FAILED'}", flush=True)
+    return passed
+
+
 def main(argv=None) -> int:
     """
     Run the demo: simulator + follower, progress on the terminal; or ``followbot calibrate``.
@@ -456,9 +495,15 @@ def main(argv=None) -> int:
         follower_parameters(options.lockstep)), environment)
         for name, (_, config) in zip(names, options.configs or [(None, None)] * len(names))]
     children = (simulator, *followers)
+    soak_samples = []
+    started_s = next_sample_s = time.monotonic()
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
+            if options.soak_period is not None and time.monotonic() >= next_sample_s:
+                next_sample_s += options.soak_period
+                soak_samples.append(_soak_sample(
+                    time.monotonic() - started_s, children, monitor.summaries))
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
@@ -476,6 +521,8 @@ def main(argv=None) -> int:
     failed = {name: code for name, code in exit_codes.items() if code != 0}
     if failed:
         print(f'[followbot] failed: {failed} (exit codes)', flush=True)
+        return 1
+    if options.soak_period is not None and not _report_soak(soak_samples):
         return 1
     if options.pictures_dir is not None:
         print(f'[followbot] pictures in {options.pictures_dir}/', flush=True)

@@ -4,6 +4,7 @@ import os
 from pathlib import Path
 import signal
 import subprocess
+import sys
 import time
 
 from geometry_msgs.msg import Twist
@@ -74,6 +75,11 @@ def ros_context(monkeypatch):
         yield context
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def node_command(module: str, *ros_arguments: str) -> list:
+    """Return the command line that starts a followbot module as its own process."""
+    return [sys.executable, '-m', module, '--ros-args', *ros_arguments]
 
 
 def stop_process(process: subprocess.Popen) -> int:

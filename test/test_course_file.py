@@ -199,8 +199,18 @@ def test_a_missing_course_file_is_rejected_naming_it(tmp_path):
 ])
 def test_a_course_file_that_is_not_yaml_is_rejected_naming_it(tmp_path, text):
     path = write_course_file(tmp_path, text)
-    with pytest.raises(ValueError, match=f'course file {path} is not valid YAML'):
+    with pytest.raises(ValueError, match=f'course file {path} is not valid YAML') as error:
         load_course_file(path)
+    # One line, as a startup error is logged: the parser's quoted source line is left out.
+    assert '\n' not in str(error.value)
+
+
+def test_a_yaml_error_says_where_in_one_line(tmp_path):
+    path = write_course_file(tmp_path, 'name: x\n  bad: [1, 2\n')
+    with pytest.raises(ValueError) as error:
+        load_course_file(path)
+    assert str(error.value) == (f'course file {path} is not valid YAML: mapping values are not '
+                                'allowed here (line 2, column 6).')
 
 
 def test_a_course_file_that_is_not_text_is_rejected(tmp_path):

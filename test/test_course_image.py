@@ -2,6 +2,8 @@
 
 import collections
 import math
+import struct
+import zlib
 
 import cv2
 from followbot_sim.course import BOOK_FLOOR_SIZE_M
@@ -100,10 +102,11 @@ def to_draw_px(points_xy):
     return np.round(np.stack([col, row], axis=1) * (1 << DRAW_SHIFT_BITS)).astype(np.int32)
 
 
-def draw_line(points_xy, grey=FLOOR_GREY, line_type=cv2.LINE_8, closed=True):
-    """Paint a polyline in the book's yellow on a grey floor, as an RGB image."""
-    image_rgb = floor_image(grey)
-    cv2.polylines(image_rgb, [to_draw_px(points_xy)], closed, LINE_RGB, LINE_THICKNESS_PX,
+def draw_line(points_xy, grey=FLOOR_GREY, line_type=cv2.LINE_8, closed=True,
+              thickness_px=LINE_THICKNESS_PX, image_rgb=None):
+    """Paint a polyline in the book's yellow on a grey floor (or on ``image_rgb``), as RGB."""
+    image_rgb = floor_image(grey) if image_rgb is None else image_rgb
+    cv2.polylines(image_rgb, [to_draw_px(points_xy)], closed, LINE_RGB, thickness_px,
                   line_type, shift=DRAW_SHIFT_BITS)
     return image_rgb
 
@@ -177,6 +180,9 @@ CASES = {
     'anti_aliased_light_floor': Case(
         l_shape_xy, l_shape_xy, lambda: draw_line(l_shape_xy(), 200, cv2.LINE_AA)),
     'jpeg_hairpins': Case(hairpins_xy, None, lambda: jpeg_round_trip(draw_line(hairpins_xy()))),
+    # Hard-edged lines only a few pixels wide (3 and 4 cm here), as a paint program draws them.
+    'hard_edged_3px': Case(ellipse_xy, None, lambda: draw_line(ellipse_xy(), thickness_px=3)),
+    'hard_edged_4px': Case(ellipse_xy, None, lambda: draw_line(ellipse_xy(), thickness_px=4)),
     'pools_of_light': Case(ellipse_xy, None, lambda: lit(
         draw_line(ellipse_xy()), [(3.0, 0.0, 1.0, 0.4), (0.0, 4.0, 1.0, 1.7),
                                   (-3.0, 0.0, 1.0, 0.3)])),
@@ -344,3 +350,54 @@ def test_file_that_is_not_an_image_is_named(tmp_path):
     path.write_text('not an image')
     with pytest.raises(ValueError, match='notes.png'):
         course_from_image(str(path), BOOK_FLOOR_SIZE_M)
+
+
+def ellipse_with_branch_image(branch_end_xy):
+    """Return the ellipse with a straight branch from its east end to ``branch_end_xy``."""
+    return draw_line(np.array([(3.0, 0.0), branch_end_xy]), closed=False,
+                     image_rgb=draw_line(ellipse_xy()))
+
+
+def test_a_spur_sending_the_trace_round_again_is_refused_in_one_sentence():
+    # A spur straight into the loop: the march runs down it and round the loop forever.
+    with pytest.raises(ValueError, match='closed loop that does not fork'):
+        course_from_image(ellipse_with_branch_image((1.0, 0.0)), BOOK_FLOOR_SIZE_M)
+
+
+@pytest.mark.parametrize('start_pose', [(3.0, -0.5, math.pi / 2.0), (0.0, 4.0, math.pi)])
+def test_a_y_junction_is_refused_rather_than_traced_as_one_loop(start_pose):
+    # A branch leaving the loop at 30 degrees: the march passes the fork straight on.
+    branch_end_xy = (3.0 - 2.0 * math.sin(math.radians(30.0)), 2.0 * math.cos(math.radians(30)))
+    with pytest.raises(ValueError, match=r'the line branches: \d\.\d\d m of line around pixel'):
+        course_from_image(ellipse_with_branch_image(branch_end_xy), BOOK_FLOOR_SIZE_M,
+                          start_pose=start_pose)
+
+
+def png_header_only(path, width_px, height_px):
+    """Write the start of a PNG, signature and IHDR, claiming a size; no pixels follow."""
+    header = struct.pack('>IIBBBBB', width_px, height_px, 8, 2, 0, 0, 0)
+    path.write_bytes(b'\x89PNG\r\n\x1a\n' + struct.pack('>I', len(header)) + b'IHDR' + header
+                     + struct.pack('>I', zlib.crc32(b'IHDR' + header)))
+    return path
+
+
+def test_an_oversized_png_is_refused_from_its_header_before_decoding(tmp_path):
+    # 20000 x 20000 px would take minutes and gigabytes to decode and trace.
+    path = png_header_only(tmp_path / 'huge.png', 20000, 20000)
+    with pytest.raises(ValueError, match=r"huge.png' is 20000x20000 px; a course image may be "
+                                         r'at most 4096x4096 px; scale it down\.'):
+        course_from_image(path, BOOK_FLOOR_SIZE_M)
+
+
+@pytest.mark.parametrize('suffix', ['.png', '.jpg'])
+def test_an_image_just_over_the_limit_is_refused(tmp_path, suffix):
+    path = tmp_path / f'floor{suffix}'
+    cv2.imwrite(str(path), np.full((4097, 4097, 3), FLOOR_GREY, dtype=np.uint8))
+    with pytest.raises(ValueError, match='is 4097x4097 px; a course image may be at most'):
+        course_from_image(path, BOOK_FLOOR_SIZE_M)
+
+
+def test_an_array_over_the_limit_is_refused():
+    floor = np.broadcast_to(np.uint8(FLOOR_GREY), (4097, 4097, 3))
+    with pytest.raises(ValueError, match='the image array is 4097x4097 px'):
+        course_from_image(floor, BOOK_FLOOR_SIZE_M)

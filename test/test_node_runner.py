@@ -52,3 +52,18 @@ def test_a_node_that_cannot_start_says_so_under_its_own_name():
     assert len(lines) == 1, result.stderr
     assert '[robot7.followbot_sim]' in lines[0]
     assert '[SimulatorNode]' not in result.stderr
+
+
+def test_a_broken_course_file_stops_the_simulator_with_one_line(tmp_path):
+    course_file = tmp_path / 'broken.yaml'
+    course_file.write_text('name: x\n  bad: [1, 2\n')
+    result = subprocess.run(
+        [sys.executable, '-m', 'followbot_sim.sim_node', '--ros-args', '-r', '__ns:=/robot7',
+         '-p', f'course:={course_file}'], capture_output=True, text=True, timeout=60,
+        env=child_environment())
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == [
+        line for line in result.stderr.splitlines() if '[robot7.followbot_sim]' in line]
+    assert len(result.stderr.splitlines()) == 1, result.stderr
+    assert 'is not valid YAML: mapping values are not allowed here (line 2, column 6).' in (
+        result.stderr)

@@ -13,8 +13,8 @@ import subprocess
 import sys
 import time
 
-from conftest import (child_environment, kill_leftovers, run_domain_id, spin_until, stop_process,
-                      STOP_TIMEOUT_S)
+from conftest import (child_environment, kill_leftovers, node_command, run_domain_id, spin_until,
+                      stop_process, STOP_TIMEOUT_S)
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot.messages import seconds
@@ -32,11 +32,6 @@ from sensor_msgs.msg import CameraInfo, Image
 CAMERA_PERIOD_S = 0.05
 KINECT_FX_PX = 320.0 / 0.5773502691896257  # 60 degrees across 640 px
 DISCOVERY_TIMEOUT_S = 30.0
-
-
-def node_command(module: str, *ros_arguments: str) -> list:
-    """Return the command line that starts a followbot module as its own process."""
-    return [sys.executable, '-m', module, '--ros-args', *ros_arguments]
 
 
 class TopicRecorder:
