@@ -116,8 +116,7 @@ def test_keep_large_buffers_leaves_a_users_malloc_settings_alone(monkeypatch):
     assert transport.keep_large_buffers() is False
 
 
-def test_the_package_profile_exported_by_the_launcher_is_named_as_the_packages(monkeypatch,
-                                                                              tmp_path):
+def test_the_launchers_export_of_the_package_profile_is_named_as_such(monkeypatch, tmp_path):
     for variable in (*transport.USER_CONFIGURATION_VARIABLES, 'RMW_IMPLEMENTATION'):
         monkeypatch.delenv(variable, raising=False)
     path = str(transport.fastdds_profile_path())
