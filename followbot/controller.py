@@ -15,10 +15,15 @@ Two steering laws, chosen by ``ControllerConfig.steering_law``:
 
 With either law, a line lost for a moment (a gap in a dashed line) is driven through on the
 last command for ``line_memory_s``; a line lost for longer makes the robot stop, or rotate
-in place towards the side where it was last seen. A line the robot saw end ahead of it (the
+in place towards the side where it was last seen: the side the line turned away to (the
+farthest band saw it ``turn_side_offset_m`` or more aside within ``turn_side_memory_s`` of the
+loss, path law), else the side last steered to. A line the robot saw end ahead of it (the
 bands beyond the farthest that saw it held no line-coloured pixel at all) is not searched for
 when it is lost: with ``stop_at_line_end`` the robot stops there, on the end of the line,
-until the line comes back into view. A line found again is trusted after
+until the line comes back into view; but a line that turned away to a side just before it
+ended may go on round a corner too sharp for the camera (a 120-degree corner leaves the view
+at its bottom edge), so the searching robot first turns up to ``corner_search_angle_deg``
+towards that side, then stops. A line found again is trusted after
 ``frames_to_trust`` frames in a row. The robot never drives forward without a line.
 
 Angular velocities follow ROS REP-103: positive is counter-clockwise, i.e. a left turn.
@@ -174,12 +179,16 @@ class ControllerConfig:
     lost_line_behaviour: str = 'search'
     search_angular_speed_radps: float = 1.0
     stop_at_line_end: bool = True
+    turn_side_offset_m: float = 0.1
+    turn_side_memory_s: float = 1.5
+    corner_search_angle_deg: float = 150.0
 
     def __post_init__(self):
         """Reject negative or non-finite numbers and unknown laws and behaviours."""
         for name in ('linear_speed_mps', 'min_linear_speed_mps', 'angular_gain_radps',
                      'look_ahead_m', 'bearing_gain_radps', 'max_angular_speed_radps',
-                     'line_memory_s', 'search_angular_speed_radps'):
+                     'line_memory_s', 'search_angular_speed_radps', 'turn_side_offset_m',
+                     'turn_side_memory_s', 'corner_search_angle_deg'):
             _check_number(name, getattr(self, name))
         for name in ('confidence_for_full_speed', 'max_lateral_acceleration_mps2',
                      'max_linear_acceleration_mps2',
@@ -284,6 +293,9 @@ class LineFollowingController:
         """Forget everything seen and commanded, as if just started."""
         self._state = STATE_WAITING
         self._last_side = 0
+        self._turn_side = 0
+        self._turn_seen_s = -math.inf
+        self._corner_search_turned_rad = 0.0
         self._seen_streak = 0
         self._last_seen_s = -math.inf
         self._end_in_view = False
@@ -327,6 +339,8 @@ class LineFollowingController:
                 self._last_seen_s = time_s
                 self._end_in_view = line_ends_in_view(detection)
                 self._last_side = _sign(target.angular_radps) or self._last_side
+                self._remember_turn_side(floor_xy_m, time_s)
+                self._corner_search_turned_rad = 0.0
             else:
                 self._state = STATE_ACQUIRING
         else:
@@ -344,7 +358,7 @@ class LineFollowingController:
             elif self._state != STATE_WAITING or detection.bands:
                 self._state = STATE_LOST
         if target is None:
-            target = self._lost_line_target()
+            target = self._lost_line_target(dt_s)
         self._command = self._limit(target, dt_s)
         return self._command
 
@@ -379,13 +393,37 @@ class LineFollowingController:
                             config.min_linear_speed_mps)
         return VelocityCommand(speed_mps, angular_radps)
 
-    def _lost_line_target(self):
+    def _remember_turn_side(self, floor_xy_m, time_s):
+        """Note the side the line turns away to, where the farthest band sees it aside."""
+        if self._config.steering_law != 'path' or floor_xy_m is None or len(floor_xy_m) == 0:
+            return
+        farthest_y_m = float(floor_xy_m[-1][1])
+        if abs(farthest_y_m) >= max(self._config.turn_side_offset_m, 1e-9):
+            self._turn_side = _sign(farthest_y_m)
+            self._turn_seen_s = time_s
+
+    def _recent_turn_side(self):
+        """Return the side the line turned away to just before it was lost, or 0."""
+        if self._last_seen_s - self._turn_seen_s <= self._config.turn_side_memory_s:
+            return self._turn_side
+        return 0
+
+    def _lost_line_target(self, dt_s):
         config = self._config
+        turn_side = self._recent_turn_side()
+        if config.lost_line_behaviour == 'search' and self._state == STATE_LINE_END and (
+                turn_side and self._corner_search_turned_rad
+                < math.radians(config.corner_search_angle_deg)):
+            # The line that ended right after turning away to a side may go on round a corner
+            # sharper than the camera can see: look there once before standing still.
+            self._corner_search_turned_rad += abs(self._command.angular_radps) * dt_s
+            return VelocityCommand(0.0, turn_side * config.search_angular_speed_radps)
         if (config.lost_line_behaviour == 'stop'
                 or self._state in (STATE_WAITING, STATE_LINE_END)):
             return self.stop_command()
-        # Towards the side the line was last steered to; left when it has no side.
-        direction = self._last_side or 1
+        # Towards the side the line turned away to, else the side it was last steered to
+        # (which can point back along the line the robot came by); left when it has no side.
+        direction = turn_side or self._last_side or 1
         return VelocityCommand(0.0, direction * config.search_angular_speed_radps)
 
     def _limit(self, target, dt_s):

@@ -125,6 +125,15 @@ CONTROLLER_PARAMETERS = {
                             + " ('search' turns toward the side it was last seen)."),
     'stop_at_line_end': ('Stop (zero Twist) instead of searching when the line is lost '
                          'after the robot saw it end ahead, bare floor beyond it.'),
+    'turn_side_offset_m': (0.0, 5.0, 'Path law: the farthest band seeing the line at '
+                           'least this far to a side means the line turns away to that side, '
+                           'where a lost line is searched for first.'),
+    'turn_side_memory_s': (0.0, 60.0, 'Path law: how long before the line is lost such a '
+                           'turn still counts.'),
+    'corner_search_angle_deg': (0.0, 360.0, "Searching ('search'), at a line end seen just "
+                                'after the line turned away to a side (a corner sharper than '
+                                'the camera sees), turn in place up to this far toward that '
+                                'side looking for the line before stopping; 0 stops at once.'),
 }
 # Where the camera is on the robot: the path law needs it to put image points on the floor.
 # The defaults are the simulated TurtleBot 2's Kinect (followbot_sim's camera_pitch_deg).

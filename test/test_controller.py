@@ -1018,10 +1018,42 @@ def test_no_line_does_not_end_in_view():
     assert not line_ends_in_view(nothing_seen())
 
 
-@pytest.mark.parametrize('steering_law', STEERING_LAWS)
-def test_stops_without_turning_at_a_line_it_saw_end(steering_law):
-    config = ControllerConfig(steering_law=steering_law, line_memory_s=0.1)
-    controller, time_s = tracking_controller(config, seen(0.2), circle_points(0.8, RIGHT))
+def points_turning_away(side, near_offset_m=0.0):
+    """
+    Return floor points of a line straight ahead whose farthest band sees it aside.
+
+    This is how the bands see a corner sharper than the camera's view ahead: the leg the robot
+    drives along in the near bands, the leg it turns onto crossing the farthest band.
+
+    :param side: LEFT or RIGHT, where the farthest point lies.
+    :param near_offset_m: how far left the nearer points lie.
+    :return: an (n, 2) array of (x forward, y left) points.
+    """
+    points = STRAIGHT_AHEAD_M + (0.0, near_offset_m)
+    points[-1, 1] = side * 1.5 * ControllerConfig().turn_side_offset_m
+    return points
+
+
+def approach_the_end(controller, time_s):
+    """Show a controller the end of a straight line coming into view, then no line."""
+    for seen_count in range(BAND_COUNT - 1, 0, -1):
+        time_s += FRAME_PERIOD_S
+        controller.update(seen(seen_count=seen_count), time_s,
+                          STRAIGHT_AHEAD_M[:seen_count])
+    return drive(controller, nothing_seen(), None, SETTLING_FRAMES + 100,
+                 start_s=time_s + FRAME_PERIOD_S)
+
+
+@pytest.mark.parametrize('steering_law, approach_points, corner_search_angle_deg', [
+    ('path', STRAIGHT_AHEAD_M, ControllerConfig().corner_search_angle_deg),
+    ('proportional', circle_points(0.8, RIGHT), ControllerConfig().corner_search_angle_deg),
+    # A bend just before the end, with the look round corners switched off.
+    ('path', circle_points(0.8, RIGHT), 0.0)])
+def test_stops_without_turning_at_a_line_it_saw_end(
+        steering_law, approach_points, corner_search_angle_deg):
+    config = ControllerConfig(steering_law=steering_law, line_memory_s=0.1,
+                              corner_search_angle_deg=corner_search_angle_deg)
+    controller, time_s = tracking_controller(config, seen(0.2), approach_points)
     # The end comes into view: fewer and fewer bands see the line, bare floor beyond.
     for seen_count in range(BAND_COUNT - 1, 0, -1):
         time_s += FRAME_PERIOD_S
@@ -1032,6 +1064,52 @@ def test_stops_without_turning_at_a_line_it_saw_end(steering_law):
     # It coasts through the line memory, then stands still at the end: a zero command.
     assert [frame.state for frame in frames[:2]] == ['coasting'] * 2
     assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end') for frame in frames[2:])
+
+
+@pytest.mark.parametrize('side', (LEFT, RIGHT))
+def test_looks_round_a_sharp_corner_then_stops_at_the_line_end(side):
+    config = ControllerConfig(line_memory_s=0.1)
+    controller, time_s = tracking_controller(config, seen(), points_turning_away(side))
+    frames = approach_the_end(controller, time_s)
+    looking = [frame for frame in frames if frame.command != VelocityCommand(0.0, 0.0)][2:]
+    # In place, toward the side the line turned away to, about as far as told; then still.
+    assert all(frame.state == 'line end' and frame.command.linear_mps == 0.0
+               and frame.command.angular_radps * side > 0.0 for frame in looking)
+    turned_rad = sum(abs(frame.command.angular_radps) for frame in looking) * FRAME_PERIOD_S
+    # Give or take a frame or two at the search speed and the slowing down to a stop.
+    speed_radps = config.search_angular_speed_radps
+    assert turned_rad == pytest.approx(
+        math.radians(config.corner_search_angle_deg),
+        abs=speed_radps * (2 * FRAME_PERIOD_S
+                           + speed_radps / config.max_angular_acceleration_radps2))
+    assert frames[-1] == Frame(VelocityCommand(0.0, 0.0), 'line end')
+
+
+def test_stops_at_once_at_a_line_end_when_told_not_to_search():
+    config = ControllerConfig(line_memory_s=0.1, lost_line_behaviour='stop')
+    controller, time_s = tracking_controller(config, seen(), points_turning_away(LEFT))
+    frames = approach_the_end(controller, time_s)
+    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end') for frame in frames[2:])
+
+
+def test_a_turn_seen_long_before_the_end_is_not_looked_round():
+    config = ControllerConfig(line_memory_s=0.1)
+    controller, time_s = tracking_controller(config, seen(), points_turning_away(LEFT))
+    later_s = time_s + config.turn_side_memory_s + 1.0
+    drive(controller, seen(), STRAIGHT_AHEAD_M, SETTLING_FRAMES, start_s=later_s)
+    frames = approach_the_end(controller, later_s + SETTLING_FRAMES * FRAME_PERIOD_S)
+    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end') for frame in frames[2:])
+
+
+def test_searches_toward_the_side_the_line_turned_away_to():
+    # Steering right onto the near points, while the farthest band sees the line turn left:
+    # a lost line is searched for on the left, not back along the way the robot came.
+    config = unlimited_config(line_memory_s=0.0)
+    controller, time_s = tracking_controller(config, seen(),
+                                             points_turning_away(LEFT, near_offset_m=-0.05))
+    assert controller.last_command.angular_radps < 0.0
+    frames = drive(controller, nothing_seen(), None, 3, start_s=time_s + FRAME_PERIOD_S)
+    assert frames[-1] == Frame(VelocityCommand(0.0, config.search_angular_speed_radps), 'lost')
 
 
 def test_searches_at_a_line_end_when_told_not_to_stop_there():

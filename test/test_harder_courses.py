@@ -65,7 +65,5 @@ def test_follower_laps_hairpins(ros_context):
     assert_stayed_on_the_line(lap(ros_context, 'hairpins'))
 
 
-@pytest.mark.xfail(strict=True, reason='issue 14: the default follower cannot yet take '
-                   'corners turning 120 degrees')
 def test_follower_laps_sharp_corners(ros_context):
     assert_stayed_on_the_line(lap(ros_context, 'sharp_corners'))
