@@ -10,11 +10,9 @@ send time. Where tf2_msgs is not importable, ``/tf`` can still be recorded from 
 are then encoded from TFMessage's definition.
 """
 
-import importlib
-
-from followbot_sim.recording import (canonical_type_name, DEFAULT_COMPRESSION, OfferedQos,
-                                     RecordingError, RecordingWriter, split_type_name,
-                                     STATIC_TF_QOS, TF_MESSAGE_TYPE)
+from followbot.recording import (canonical_type_name, DEFAULT_COMPRESSION,
+                                 import_message_class, OfferedQos, RecordingError,
+                                 RecordingWriter, STATIC_TF_QOS, TF_MESSAGE_TYPE)
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
@@ -29,21 +27,6 @@ DISCOVERY_PERIOD_S = 0.1
 QUEUE_DEPTH = 100
 TF_TOPIC = '/tf'
 TF_STATIC_TOPIC = '/tf_static'
-
-
-def import_message_class(type_name: str):
-    """
-    Return the Python class of a message type, or None when its package is not importable.
-
-    :param type_name: such as ``sensor_msgs/msg/Image``.
-    :return: the class, such as ``sensor_msgs.msg.Image``, or None.
-    :raises RecordingError: if the name is not a message type name.
-    """
-    package, name = split_type_name(type_name)
-    try:
-        return getattr(importlib.import_module(f'{package}.msg'), name)
-    except (ImportError, AttributeError):
-        return None
 
 
 def offered_qos(profile: QoSProfile) -> OfferedQos:
@@ -170,6 +153,17 @@ class Recorder(Node):
     def waiting_topics(self) -> list:
         """Return the topics that have no publisher yet, so are not recorded yet."""
         return sorted(self._pending)
+
+    @property
+    def matched(self) -> bool:
+        """
+        Tell whether every topic is subscribed and each subscription hears its publishers.
+
+        A publisher sends only to the subscriptions it has matched: a run that starts before
+        this is true may lose its first messages from the recording.
+        """
+        return not self._pending and all(
+            subscription.get_publisher_count() > 0 for subscription in self.subscriptions)
 
     def _warn_about_missing_tf(self, fallback_tf: set, tf_odometry_topic) -> None:
         if TF_TOPIC in fallback_tf and not tf_odometry_topic:

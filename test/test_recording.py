@@ -1,5 +1,5 @@
 """
-Recordings written by followbot_sim.recording, read back by independent readers.
+Recordings written by followbot.recording, read back by independent readers.
 
 Messages are serialised by rclpy (the bytes a ``raw=True`` subscription delivers), written, and
 read back with the ``rosbags`` library (its own MCAP reader and CDR deserialiser) and with the
@@ -14,8 +14,8 @@ import subprocess
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from followbot_sim import recording
-from followbot_sim.recording import (MessageDefinitions, OfferedQos, read_messages,
+from followbot import recording
+from followbot.recording import (MessageDefinitions, OfferedQos, read_messages,
                                      RecordingError, RecordingWriter)
 from geometry_msgs.msg import TransformStamped, Twist
 from mcap.reader import make_reader
@@ -301,7 +301,7 @@ def test_qos_profile_is_serialised_as_rosbag2_version_9():
 
 KILLED_WRITER = """
 import os, signal, sys
-from followbot_sim.recording import RecordingWriter
+from followbot.recording import RecordingWriter
 writer = RecordingWriter(sys.argv[1], flush_period_s=0.0)
 writer.add_topic('/count', 'std_msgs/msg/UInt32')
 for count in range(int(sys.argv[2])):

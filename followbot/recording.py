@@ -18,10 +18,13 @@ messages, so ``ros2 bag info``/``ros2 bag play``, the ``rosbags`` library and Fo
 The ``.msg`` files come from ``share/<package>/msg/`` of the ROS prefixes (``AMENT_PREFIX_PATH``
 and this Python's prefix, where the PyPI wheels put them). ``tf2_msgs/msg/TFMessage`` has a
 built-in definition, so ``/tf`` and ``/tf_static`` can be written, encoded from that definition,
-even where tf2_msgs is not installed. No rclpy here: the ROS side is ``recorder_node``.
+even where tf2_msgs is not installed. No rclpy here: the ROS side is
+``followbot_sim.recorder`` (recording) and ``followbot.replay`` (replaying). It sits on the robot
+side because a robot's recordings are replayed there, without the simulator.
 """
 
 import dataclasses
+import importlib
 import json
 import os
 from pathlib import Path
@@ -111,6 +114,9 @@ class RecordedMessage(NamedTuple):
     type_name: str
     log_time_ns: int
     data: bytes
+    # When the publisher sent it (its own clock): orders messages of several publishers as
+    # they were sent, also where the log times (simulated time) are equal.
+    publish_time_ns: int = 0
 
 
 def _duration_yaml(nanoseconds: int) -> dict:
@@ -169,6 +175,21 @@ def canonical_type_name(type_name: str) -> str:
     """
     package, name = split_type_name(type_name)
     return f'{package}/msg/{name}'
+
+
+def import_message_class(type_name: str):
+    """
+    Return the Python class of a message type, or None when its package is not importable.
+
+    :param type_name: such as ``sensor_msgs/msg/Image``.
+    :return: the class, such as ``sensor_msgs.msg.Image``, or None.
+    :raises RecordingError: if the name is not a message type name.
+    """
+    package, name = split_type_name(type_name)
+    try:
+        return getattr(importlib.import_module(f'{package}.msg'), name)
+    except (ImportError, AttributeError):
+        return None
 
 
 def default_share_dirs() -> list:
@@ -557,7 +578,7 @@ def read_messages(path, topics: Iterable[str] | None = None) -> Iterator[Recorde
         try:
             for schema, channel, message in reader.iter_messages(topics=topics):
                 yield RecordedMessage(channel.topic, schema.name if schema else '',
-                                      message.log_time, message.data)
+                                      message.log_time, message.data, message.publish_time)
         except READ_ERRORS as error:
             raise RecordingError(f'The recording {path} is damaged: {error}.') from None
 
@@ -570,7 +591,7 @@ def _salvage(stream, topics) -> list:
     try:
         for schema, channel, message in records:
             found.append(RecordedMessage(channel.topic, schema.name if schema else '',
-                                         message.log_time, message.data))
+                                         message.log_time, message.data, message.publish_time))
     except READ_ERRORS:
         pass  # The file ends inside a record: everything before it is kept.
     found.sort(key=lambda message: message.log_time_ns)
