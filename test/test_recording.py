@@ -201,8 +201,9 @@ def test_read_messages_yields_serialised_messages_in_log_time_order(recording_pa
     read = list(read_messages(recording_path))
     assert [message.log_time_ns for message in read] == sorted(
         message.log_time_ns for message in read)
+    # Written without a publish time: it is the log time.
     assert read[0] == ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', 6 * SECOND_NS,
-                       serialize_message(diagnostics()))
+                       serialize_message(diagnostics()), 6 * SECOND_NS)
     assert [message.topic for message in read_messages(recording_path, ['/cmd_vel', '/tf'])] \
         == ['/cmd_vel', '/tf']
 
