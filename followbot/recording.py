@@ -362,6 +362,11 @@ class RecordingWriter:
         return sum(self._message_counts.values())
 
     @property
+    def message_counts(self) -> dict:
+        """Return {topic: messages written} of the topics added so far."""
+        return dict(self._message_counts)
+
+    @property
     def topics(self) -> dict:
         """Return {topic: full type name} of the topics added so far."""
         return {topic: entry.type_name for topic, entry in self._topics.items()}

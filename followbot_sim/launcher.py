@@ -25,7 +25,10 @@ from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_na
                                    ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
                                    StopSignals)
 from followbot.transport import environment_with_profile, keep_large_buffers
+from followbot.recording import RecordingError
+from followbot.transport import use_package_profile
 from followbot_sim.course_library import COURSES
+from followbot_sim.run_recording import add_record_options, RunRecording
 from followbot_sim.score import score_values, SIMULATOR_NODE
 import rclpy
 from rclpy.context import Context
@@ -93,6 +96,7 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help=f"save {CAMERA_PICTURE} (camera view with the follower's "
                              f'overlay) and {OVERVIEW_PICTURE} (course from above with the '
                              'path driven) here while running')
+    add_record_options(parser)
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments
     if options.duration < 0 or options.real_time_factor < 0 or options.report_period <= 0:
@@ -270,6 +274,9 @@ def main(argv=None) -> int:
     environment, profile = environment_with_profile(
         dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0'))
     keep_large_buffers()
+    if options.record:
+        # The recorder in this process takes every camera frame: through shared memory too.
+        use_package_profile()
     if options.domain_id is not None:
         environment['ROS_DOMAIN_ID'] = str(options.domain_id)
     # ROS reads an empty ROS_DOMAIN_ID as the default domain, 0.
@@ -328,6 +335,19 @@ def main(argv=None) -> int:
         monitor.destroy_node()
         rclpy.try_shutdown(context=context)
         return 2
+    recording = None
+    if options.record:
+        try:
+            recording = RunRecording(options.record, simulator_name, options.record_compressed,
+                                     clock_topic, context=context)
+        except RecordingError as error:
+            print(f'[followbot] {error}', file=sys.stderr, flush=True)
+            executor.shutdown()
+            monitor.destroy_node()
+            rclpy.try_shutdown(context=context)
+            return 2
+        executor.add_node(recording.recorder)
+        simulator_parameters['start_paused'] = 'true'
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     follower = ChildProcess('follower', _node_command(
@@ -336,6 +356,9 @@ def main(argv=None) -> int:
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
+            if recording is not None and not recording.started and recording.poll():
+                print('[followbot] Recorder hears every topic: the simulation starts.',
+                      flush=True)
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
@@ -345,6 +368,8 @@ def main(argv=None) -> int:
         while time.monotonic() < deadline:
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
         executor.shutdown()
+        if recording is not None:
+            print(f'[followbot] recorded {recording.close()}', flush=True)
         monitor.destroy_node()
         rclpy.try_shutdown(context=context)
     if monitor.summary:

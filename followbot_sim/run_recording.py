@@ -1,0 +1,127 @@
+"""
+Record a simulated run, every frame of it: what ``followbot --record`` and ``scorecard --record``
+use.
+
+The topics are the ones a user looks at again: the camera (raw, or JPEG as image_transport's
+compressed plugin sends it), its camera_info, the follower's commands and status, odometry,
+ground truth, the score, ``/tf``, ``/tf_static`` and ``/clock``. Log times are simulated time,
+so a recording's timeline is the run's, however fast the machine ran it. The simulator starts
+paused and is let go only when the recorder hears every publisher: no first frame is missed.
+"""
+
+from followbot_sim.recorder import Recorder
+from rclpy.parameter import Parameter
+from std_srvs.srv import SetBool
+
+CLOCK_TOPIC = '/clock'
+RAW_CAMERA_TOPIC = ('camera/rgb/image_raw', 'sensor_msgs/msg/Image')
+COMPRESSED_CAMERA_TOPIC = ('camera/rgb/image_raw/compressed', 'sensor_msgs/msg/CompressedImage')
+# Everything but the camera image, as (topic relative to the robot's namespace, type).
+RUN_TOPICS = (
+    ('camera/rgb/camera_info', 'sensor_msgs/msg/CameraInfo'),
+    ('cmd_vel', 'geometry_msgs/msg/Twist'),
+    ('odom', 'nav_msgs/msg/Odometry'),
+    ('ground_truth/odom', 'nav_msgs/msg/Odometry'),
+    ('follower/status', 'diagnostic_msgs/msg/DiagnosticArray'),
+    ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray'),
+    ('/tf', 'tf2_msgs/msg/TFMessage'),
+    ('/tf_static', 'tf2_msgs/msg/TFMessage'),
+)
+CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+RECORDER_ODOMETRY_TOPIC = 'odom'
+PAUSE_SERVICE = 'pause'
+BYTES_PER_MEGABYTE = 1e6
+
+
+def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list:
+    """
+    Return the topics a run's recording holds, as (topic, message type) pairs.
+
+    :param compressed: record the camera as JPEG (``.../compressed``) instead of raw.
+    :param clock_topic: the simulated clock's topic (a robot under a namespace has its own).
+    :return: the pairs; relative names are the robot's, in the recorder's namespace.
+    """
+    camera = COMPRESSED_CAMERA_TOPIC if compressed else RAW_CAMERA_TOPIC
+    return [camera, *RUN_TOPICS, (clock_topic, CLOCK_TYPE)]
+
+
+def add_record_options(parser) -> None:
+    """
+    Add ``--record`` and ``--record-compressed`` to a command's argument parser.
+
+    :param parser: an ``argparse.ArgumentParser``.
+    """
+    parser.add_argument('--record', metavar='PATH', default=None,
+                        help='record the run into this rosbag2-compatible MCAP file (camera, '
+                             'camera_info, cmd_vel, odometry, ground truth, score, follower '
+                             'status, /tf, /tf_static, /clock); the simulator starts once the '
+                             'recorder hears every topic')
+    parser.add_argument('--record-compressed', action='store_true',
+                        help='record the camera as JPEG (sensor_msgs/CompressedImage, about '
+                             '20x smaller) instead of raw')
+
+
+class RunRecording:
+    """A Recorder on simulated time that lets a paused simulator go once it hears everything."""
+
+    def __init__(self, path, simulator_name: str, compressed: bool = False,
+                 clock_topic: str = CLOCK_TOPIC, **kwargs):
+        """
+        Create the recorder node; add :attr:`recorder` to an executor and call :meth:`poll`.
+
+        :param path: the ``.mcap`` file to write.
+        :param simulator_name: the simulator's fully qualified node name, whose pause service
+            is called to start it; None when the caller starts the simulator itself.
+        :param compressed: record the camera as JPEG.
+        :param clock_topic: the simulated clock's topic.
+        :param kwargs: passed to the Recorder and so to ``Node`` (``context=``, ...).
+        :raises RecordingError: if the file cannot be created.
+        """
+        # The recorder's own clock follows the run's clock topic, also under a namespace.
+        remap = [] if clock_topic == CLOCK_TOPIC else [
+            '--ros-args', '-r', f'{CLOCK_TOPIC}:={clock_topic}']
+        self.recorder = Recorder(
+            path, run_topics(compressed, clock_topic), tf_odometry_topic=RECORDER_ODOMETRY_TOPIC,
+            parameter_overrides=[Parameter('use_sim_time', value=True)], cli_args=remap,
+            **kwargs)
+        self._pause_client = None if simulator_name is None else self.recorder.create_client(
+            SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
+        self.started = False
+
+    def poll(self) -> bool:
+        """
+        Start the simulator once the recorder hears every topic (call it after each spin).
+
+        :return: whether the simulator has been asked to start.
+        """
+        if not self.started and self.recorder.matched and (
+                self._pause_client is None or self._pause_client.service_is_ready()):
+            if self._pause_client is not None:
+                self._pause_client.call_async(SetBool.Request(data=False))
+            self.started = True
+        return self.started
+
+    def close(self) -> str:
+        """
+        Finish the file and destroy the recorder node.
+
+        :return: one line saying what was recorded, such as ``run.mcap: 2412 messages on 11
+            topics (200 camera frames), 43.1 MB``.
+        """
+        writer = self.recorder.writer
+        camera_frames = sum(count for topic, count in self.message_counts().items()
+                            if topic.endswith((RAW_CAMERA_TOPIC[0], COMPRESSED_CAMERA_TOPIC[0])))
+        self.recorder.destroy_node()
+        try:
+            size = f', {writer.path.stat().st_size / BYTES_PER_MEGABYTE:.1f} MB'
+        except OSError:
+            size = ''
+        failures = f'; {len(self.recorder.failures)} not written' \
+            if self.recorder.failures else ''
+        return (f'{writer.path}: {writer.message_count} messages on {len(writer.topics)} '
+                f'topics ({camera_frames} camera frames){size}{failures}')
+
+    def message_counts(self) -> dict:
+        """Return {topic: messages written}."""
+        return self.recorder.writer.message_counts
+
