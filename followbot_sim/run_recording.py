@@ -1,6 +1,5 @@
 """
-Record a simulated run, every frame of it: what ``followbot --record`` and ``scorecard --record``
-use.
+Record a simulated run, every frame of it, for ``followbot --record`` and ``scorecard --record``.
 
 The topics are the ones a user looks at again: the camera (raw, or JPEG as image_transport's
 compressed plugin sends it), its camera_info, the follower's commands and status, odometry,
@@ -124,4 +123,3 @@ class RunRecording:
     def message_counts(self) -> dict:
         """Return {topic: messages written}."""
         return self.recorder.writer.message_counts
-
