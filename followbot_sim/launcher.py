@@ -24,9 +24,8 @@ from followbot.image_conversion import image_to_array, to_bgr
 from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_namespace,
                                    ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
                                    StopSignals)
-from followbot.transport import environment_with_profile, keep_large_buffers
 from followbot.recording import RecordingError
-from followbot.transport import use_package_profile
+from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim.course_library import COURSES
 from followbot_sim.run_recording import add_record_options, RunRecording
 from followbot_sim.score import score_values, SIMULATOR_NODE
