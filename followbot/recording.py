@@ -40,6 +40,7 @@ from mcap_ros2 import __version__ as MCAP_ROS2_VERSION
 # The encoder mcap-ros2-support's own Writer uses; the pinned version keeps this name.
 from mcap_ros2._dynamic import serialize_dynamic
 import yaml
+from zstandard import ZstdError
 
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
@@ -56,8 +57,9 @@ BAG_METADATA_VERSION = 9
 DEFAULT_ROS_DISTRO = 'jazzy'
 DEFINITION_DELIMITER = '=' * 80
 MCAP_MAGIC = b'\x89MCAP0\r\n'
-# What the mcap library raises on a file that ends early or holds a broken record.
-READ_ERRORS = (McapError, ValueError, EOFError, OSError)
+# What the mcap library raises on a file that ends early or holds a broken record; a damaged
+# compressed chunk makes lz4 raise RuntimeError and zstandard its ZstdError.
+READ_ERRORS = (McapError, ValueError, EOFError, OSError, RuntimeError, ZstdError)
 PRIMITIVE_TYPES = frozenset((
     'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
     'uint32', 'int64', 'uint64', 'string', 'wstring'))
