@@ -362,6 +362,8 @@ def main(argv=None) -> int:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
         exit_codes = {child.name: child.stop() for child in (follower, simulator)}
+        if recording is not None:
+            recording.drain(executor)
         # Let the last score and pictures arrive, then leave.
         deadline = time.monotonic() + MONITOR_SPIN_S * 5
         while time.monotonic() < deadline:

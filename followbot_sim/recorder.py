@@ -25,6 +25,13 @@ DISCOVERY_PERIOD_S = 0.1
 # Messages a subscription keeps while the recorder is busy writing: a burst of 5 s of camera at
 # 20 Hz. Memory is only used when the recorder falls behind (at most ~90 MB for 640x480 bgr8).
 QUEUE_DEPTH = 100
+# Small messages come many times more often (/clock at 100 Hz of simulated time, several times
+# faster than real time in lockstep): their subscriptions keep 20 s of /clock, a few MB at most,
+# so a recorder that the machine leaves unscheduled for a while catches up without a loss.
+SMALL_MESSAGE_QUEUE_DEPTH = 2000
+# Types whose messages are large, kept QUEUE_DEPTH deep; the others SMALL_MESSAGE_QUEUE_DEPTH.
+LARGE_MESSAGE_TYPES = frozenset(('sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage',
+                                 'sensor_msgs/msg/PointCloud2'))
 TF_TOPIC = '/tf'
 TF_STATIC_TOPIC = '/tf_static'
 
@@ -46,7 +53,7 @@ def offered_qos(profile: QoSProfile) -> OfferedQos:
         avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions)
 
 
-def subscription_qos(offers: list) -> QoSProfile:
+def subscription_qos(offers: list, depth: int = QUEUE_DEPTH) -> QoSProfile:
     """
     Return the QoS that receives from every publisher with the best delivery they all offer.
 
@@ -55,6 +62,7 @@ def subscription_qos(offers: list) -> QoSProfile:
     so latched messages such as ``/tf_static`` arrive too. This is rosbag2's rule.
 
     :param offers: the publishers' QoS profiles.
+    :param depth: messages the subscription keeps while the recorder is busy.
     :return: the subscription's profile.
     """
     reliable = bool(offers) and all(
@@ -62,7 +70,7 @@ def subscription_qos(offers: list) -> QoSProfile:
     latched = bool(offers) and all(
         offer.durability == DurabilityPolicy.TRANSIENT_LOCAL for offer in offers)
     return QoSProfile(
-        depth=QUEUE_DEPTH,
+        depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
@@ -135,7 +143,7 @@ class Recorder(Node):
         if TF_TOPIC in fallback_tf and tf_odometry_topic:
             self._writer.add_topic(TF_TOPIC, TF_MESSAGE_TYPE, [OfferedQos(depth=QUEUE_DEPTH)])
             self.create_subscription(Odometry, tf_odometry_topic, self._odometry_callback,
-                                     QUEUE_DEPTH)
+                                     SMALL_MESSAGE_QUEUE_DEPTH)
         if self._static_transforms:
             self._writer.add_topic(TF_STATIC_TOPIC, TF_MESSAGE_TYPE, [STATIC_TF_QOS])
         # Wall clock: under simulated time a paused /clock must not stop the discovery.
@@ -186,7 +194,8 @@ class Recorder(Node):
             self.create_subscription(
                 message_class, name,
                 lambda data, info, topic=name: self._message_callback(topic, data, info),
-                subscription_qos(offers), raw=True)
+                subscription_qos(offers, QUEUE_DEPTH if type_name in LARGE_MESSAGE_TYPES
+                                 else SMALL_MESSAGE_QUEUE_DEPTH), raw=True)
         if not self._pending:
             self._discovery_timer.cancel()
 

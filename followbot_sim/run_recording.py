@@ -8,6 +8,8 @@ so a recording's timeline is the run's, however fast the machine ran it. The sim
 paused and is let go only when the recorder hears every publisher: no first frame is missed.
 """
 
+import time
+
 from followbot_sim.recorder import Recorder
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool
@@ -30,6 +32,11 @@ CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 RECORDER_ODOMETRY_TOPIC = 'odom'
 PAUSE_SERVICE = 'pause'
 BYTES_PER_MEGABYTE = 1e6
+# After a run, the recorder works through what it still holds until nothing has come for this
+# long (wall time), for at most DRAIN_LIMIT_S.
+DRAIN_QUIET_S = 0.5
+DRAIN_LIMIT_S = 30.0
+DRAIN_SPIN_S = 0.05
 
 
 def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list:
@@ -99,6 +106,22 @@ class RunRecording:
                 self._pause_client.call_async(SetBool.Request(data=False))
             self.started = True
         return self.started
+
+    def drain(self, executor) -> None:
+        """
+        Spin until the recorder has written everything it received (nothing new for a while).
+
+        :param executor: the executor the recorder is in.
+        """
+        writer = self.recorder.writer
+        now_s = time.monotonic()
+        deadline_s = now_s + DRAIN_LIMIT_S
+        count, last_change_s = writer.message_count, now_s
+        while now_s < deadline_s and now_s - last_change_s < DRAIN_QUIET_S:
+            executor.spin_once(timeout_sec=DRAIN_SPIN_S)
+            now_s = time.monotonic()
+            if writer.message_count != count:
+                count, last_change_s = writer.message_count, now_s
 
     def close(self) -> str:
         """
