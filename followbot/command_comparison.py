@@ -1,11 +1,12 @@
 """
 Compare the commands a follower gives on replayed camera frames with the recorded ones.
 
-Pure: no rclpy. A recording holds camera frames and commands in the order their publishers sent
-them (each message's publish time). The command that answers a frame is the first one sent
-after it and before the next frame; in lockstep the simulator waits for exactly that answer, so
-the pairing is exact there. Commands sent between frames for another reason (a stop when the
-camera fell silent) come after the answer and are not paired.
+Pure: no rclpy. Which recorded command answered which frame: where the follower's status was
+recorded, the follower published the command of a frame just before the status stamped with
+that frame's stamp, so the answer is the last command sent before that status (exact, also when
+the camera was recorded compressed and so sent a little after the raw frame the follower saw).
+Otherwise the answer is the first command sent after the frame and before the next one, by the
+messages' publish times; in lockstep the simulator waits for exactly that answer.
 """
 
 import bisect
@@ -76,6 +77,31 @@ def answers_by_order(frame_times_ns, command_times_ns) -> list:
             answers.append(commands[position])
         else:
             answers.append(None)
+    return answers
+
+
+def answers_by_status(frame_stamps_ns, statuses, command_times_ns) -> list:
+    """
+    Pair each frame with the last command sent before the follower's status for its stamp.
+
+    :param frame_stamps_ns: the frames' header stamps, in the order the frames are replayed.
+    :param statuses: (header stamp, publish time) of each follower status, in any order.
+    :param command_times_ns: the commands' publish times, in any order.
+    :return: for each frame, the index into ``command_times_ns`` of its answer, or None when
+        the follower reported nothing for that frame.
+    """
+    status_times = {}
+    for stamp_ns, publish_time_ns in statuses:
+        status_times.setdefault(stamp_ns, publish_time_ns)
+    commands = sorted(range(len(command_times_ns)), key=lambda index: command_times_ns[index])
+    sorted_times = [command_times_ns[index] for index in commands]
+    answers = []
+    for stamp_ns in frame_stamps_ns:
+        status_time_ns = status_times.get(stamp_ns)
+        position = None if status_time_ns is None else bisect.bisect_right(
+            sorted_times, status_time_ns) - 1
+        answers.append(commands[position] if position is not None and position >= 0
+                       else None)
     return answers
 
 

@@ -78,6 +78,11 @@ CHUNK_SIZE_BYTES = 1024 * 1024
 # that is killed loses at most about this much of the recording.
 FLUSH_PERIOD_S = 1.0
 NANOSECONDS_PER_SECOND = 1_000_000_000
+# A CDR message starts with 4 bytes of encapsulation (the second: 0 big, 1 little endian); a
+# header stamp follows as int32 seconds and uint32 nanoseconds.
+CDR_ENCAPSULATION_BYTES = 4
+CDR_HEADER_STAMP_END = CDR_ENCAPSULATION_BYTES + 8
+CDR_BYTE_ORDERS = {0: '>', 1: '<'}
 # RMW_DURATION_INFINITE: the "infinite" a Jazzy publisher reports for deadline and lifespan.
 INFINITE_NS = 9_223_372_036_854_775_807
 
@@ -550,6 +555,24 @@ class RecordingWriter:
     def __exit__(self, *exception_info):
         """Close the recording, also when the block raised."""
         self.close()
+
+
+def header_stamp_ns(data: bytes) -> int | None:
+    """
+    Return the header stamp of a serialised message that starts with a ``std_msgs/Header``.
+
+    Images, compressed images and diagnostics start with their header: the stamp is read from
+    the CDR bytes without deserialising a whole frame.
+
+    :param data: the CDR bytes, encapsulation header included.
+    :return: the stamp in nanoseconds, or None if the bytes are too short or of an unknown
+        encapsulation.
+    """
+    if len(data) < CDR_HEADER_STAMP_END or data[1] not in CDR_BYTE_ORDERS:
+        return None
+    seconds, nanoseconds = struct.unpack_from(CDR_BYTE_ORDERS[data[1]] + 'iI', data,
+                                              CDR_ENCAPSULATION_BYTES)
+    return seconds * NANOSECONDS_PER_SECOND + nanoseconds
 
 
 def read_messages(path, topics: Iterable[str] | None = None) -> Iterator[RecordedMessage]:

@@ -21,11 +21,12 @@ import os
 import sys
 import time
 
-from followbot.command_comparison import (answers_by_order, Comparison, FrameResult,
-                                          Velocity)
+from followbot.command_comparison import (answers_by_order, answers_by_status, Comparison,
+                                          FrameResult, Velocity)
 from followbot.follower_node import COMPRESSED_SUFFIX, FollowerNode
 from followbot.node_runner import init_rclpy, RosStartError
-from followbot.recording import import_message_class, read_messages, RecordingError
+from followbot.recording import (header_stamp_ns, import_message_class, read_messages,
+                                 RecordingError)
 from geometry_msgs.msg import Twist, TwistStamped
 import rclpy
 from rclpy.context import Context
@@ -40,6 +41,9 @@ IMAGE_TYPE = 'sensor_msgs/msg/Image'
 COMPRESSED_TYPE = 'sensor_msgs/msg/CompressedImage'
 CAMERA_INFO_TYPE = 'sensor_msgs/msg/CameraInfo'
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+STATUS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
+# The follower's status topic (~/status): the only DiagnosticArray named .../status.
+STATUS_SUFFIX = '/status'
 COMMAND_TYPES = {'geometry_msgs/msg/Twist': False, 'geometry_msgs/msg/TwistStamped': True}
 COMMAND_TOPIC_NAME = 'cmd_vel'
 CAMERA_INFO_NAME = 'camera_info'
@@ -125,14 +129,20 @@ class RecordingPlan:
         """
         types = {}
         frame_times = {}
+        frame_stamps = {}
+        statuses = {}
         commands = []
-        self.frame_count = 0
         for message in read_messages(path):
             types.setdefault(message.topic, message.type_name)
             if message.type_name in (IMAGE_TYPE, COMPRESSED_TYPE):
                 frame_times.setdefault(message.topic, []).append(message.publish_time_ns)
+                frame_stamps.setdefault(message.topic, []).append(
+                    header_stamp_ns(message.data))
             elif message.type_name in COMMAND_TYPES:
                 commands.append(message)
+            elif message.type_name == STATUS_TYPE and message.topic.endswith(STATUS_SUFFIX):
+                statuses.setdefault(message.topic, []).append(
+                    (header_stamp_ns(message.data), message.publish_time_ns))
         self.camera_topic = _choose(
             camera_topic, [topic for topic, name in types.items()
                            if name in (IMAGE_TYPE, COMPRESSED_TYPE)], 'camera', path)
@@ -150,15 +160,23 @@ class RecordingPlan:
                                          path)
         commands = [message for message in commands if message.topic == self.command_topic]
         self.frame_times_ns = frame_times[self.camera_topic]
+        self.frame_stamps_ns = frame_stamps[self.camera_topic]
         self.recorded_commands = [_velocity(message) for message in commands]
-        answers = answers_by_order(self.frame_times_ns,
-                                   [message.publish_time_ns for message in commands])
+        command_times_ns = [message.publish_time_ns for message in commands]
+        # The follower's status names the frame each command answered; one follower only.
+        self.paired_by = 'follower status' if len(statuses) == 1 else 'publish order'
+        if len(statuses) == 1:
+            answers = answers_by_status(self.frame_stamps_ns, next(iter(statuses.values())),
+                                        command_times_ns)
+        else:
+            answers = answers_by_order(self.frame_times_ns, command_times_ns)
         self.recorded_answers = [None if index is None else self.recorded_commands[index]
                                  for index in answers]
 
     def describe(self) -> str:
         """Return one line naming the topics the replay uses."""
-        commands = (f'{len(self.recorded_commands)} commands on {self.command_topic}'
+        commands = (f'{len(self.recorded_commands)} commands on {self.command_topic} (paired '
+                    f'with frames by {self.paired_by})'
                     if self.command_topic else 'no recorded commands')
         return (f'{len(self.frame_times_ns)} frames on {self.camera_topic} '
                 f'({self.camera_type.rsplit("/", 1)[-1]}), {commands}')
@@ -303,8 +321,9 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
             feeder.image_publisher.publish(message.data)
             _spin_until(executor, lambda: len(feeder.answers) > answered,
                         time.monotonic() + options.answer_timeout)
+            stamp_ns = header_stamp_ns(message.data) or message.log_time_ns
             comparison.add(FrameResult(
-                index, message.log_time_ns / NANOSECONDS_PER_SECOND,
+                index, stamp_ns / NANOSECONDS_PER_SECOND,
                 plan.recorded_answers[index] if index < len(plan.recorded_answers) else None,
                 feeder.answers[answered] if len(feeder.answers) > answered else None))
         wall_s = time.monotonic() - start_wall_s
