@@ -23,7 +23,7 @@ import time
 
 from followbot.command_comparison import (answers_by_order, answers_by_status, Comparison,
                                           FrameResult, Velocity)
-from followbot.follower_node import COMPRESSED_SUFFIX, FollowerNode
+from followbot.follower_node import COMPRESSED_SUFFIX, FOLLOWER_PARAMETERS, FollowerNode
 from followbot.node_runner import init_rclpy, RosStartError
 from followbot.recording import (header_stamp_ns, import_message_class, read_messages,
                                  RecordingError)
@@ -61,6 +61,10 @@ CONNECT_TIMEOUT_S = 10.0
 DEFAULT_ANSWER_TIMEOUT_S = 1.0
 NANOSECONDS_PER_SECOND = 1e9
 EXIT_MATCH, EXIT_DIFFER, EXIT_UNUSABLE = 0, 1, 2
+# The follower stops when no frame came for image_timeout_s of wall time. A replay's pace is
+# not the camera's (the machine may stall it): the replayed follower waits as long as it may.
+IMAGE_TIMEOUT_PARAMETER = 'image_timeout_s'
+REPLAY_IMAGE_TIMEOUT_S = FOLLOWER_PARAMETERS[IMAGE_TIMEOUT_PARAMETER].high
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:
@@ -131,6 +135,7 @@ class RecordingPlan:
         frame_times = {}
         frame_stamps = {}
         statuses = {}
+        camera_infos = {}
         commands = []
         for message in read_messages(path):
             types.setdefault(message.topic, message.type_name)
@@ -140,6 +145,9 @@ class RecordingPlan:
                     header_stamp_ns(message.data))
             elif message.type_name in COMMAND_TYPES:
                 commands.append(message)
+            elif message.type_name == CAMERA_INFO_TYPE:
+                camera_infos.setdefault(message.topic, {}).setdefault(
+                    header_stamp_ns(message.data), message.data)
             elif message.type_name == STATUS_TYPE and message.topic.endswith(STATUS_SUFFIX):
                 statuses.setdefault(message.topic, []).append(
                     (header_stamp_ns(message.data), message.publish_time_ns))
@@ -148,8 +156,8 @@ class RecordingPlan:
                            if name in (IMAGE_TYPE, COMPRESSED_TYPE)], 'camera', path)
         self.camera_type = types[self.camera_topic]
         self.camera_info_topic = camera_info_topic(self.camera_topic)
-        if types.get(self.camera_info_topic) != CAMERA_INFO_TYPE:
-            self.camera_info_topic = None
+        # Each frame's camera_info by its stamp: a recording may log the two in either order.
+        self.camera_infos = camera_infos.get(self.camera_info_topic, {})
         self.clock_topic = CLOCK_TOPIC if types.get(CLOCK_TOPIC) == CLOCK_TYPE else None
         command_topics = [topic for topic, name in types.items() if name in COMMAND_TYPES]
         named = [topic for topic in command_topics if topic.rsplit('/', 1)[-1] ==
@@ -283,6 +291,7 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
         cli_args=['--ros-args', '-r', f'{CLOCK_TOPIC}:={namespace}/{REPLAY_CLOCK_TOPIC}'],
         parameter_overrides=[
             Parameter('use_sim_time', value=True),
+            Parameter(IMAGE_TIMEOUT_PARAMETER, value=float(REPLAY_IMAGE_TIMEOUT_S)),
             Parameter('image_transport', value='compressed' if compressed else 'raw')])
     feeder = ReplayFeeder(compressed, follower.get_parameter('cmd_vel_stamped').value,
                           context=context, namespace=namespace)
@@ -295,17 +304,13 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
                            time.monotonic() + CONNECT_TIMEOUT_S):
             raise RuntimeError('The follower did not connect to the replay within '
                                f'{CONNECT_TIMEOUT_S:g} s.')
-        topics = [plan.camera_topic] + [topic for topic in (
-            plan.camera_info_topic, plan.clock_topic) if topic]
+        topics = [plan.camera_topic] + ([plan.clock_topic] if plan.clock_topic else [])
         camera_info = None
         start_wall_s = time.monotonic()
         first_log_ns = last_log_ns = None
         for message in read_messages(path, topics):
             if message.topic == plan.clock_topic:
                 feeder.clock_publisher.publish(message.data)
-                continue
-            if message.topic == plan.camera_info_topic:
-                camera_info = message.data
                 continue
             first_log_ns = message.log_time_ns if first_log_ns is None else first_log_ns
             last_log_ns = message.log_time_ns
@@ -315,15 +320,16 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
                     NANOSECONDS_PER_SECOND * options.rate)
                 _spin_until(executor, lambda: False, due_s)
             # As the camera does: the intrinsics first, then the frame they describe.
+            stamp_ns = header_stamp_ns(message.data)
+            camera_info = plan.camera_infos.get(stamp_ns, camera_info)
             if camera_info is not None:
                 feeder.camera_info_publisher.publish(camera_info)
             answered = len(feeder.answers)
             feeder.image_publisher.publish(message.data)
             _spin_until(executor, lambda: len(feeder.answers) > answered,
                         time.monotonic() + options.answer_timeout)
-            stamp_ns = header_stamp_ns(message.data) or message.log_time_ns
             comparison.add(FrameResult(
-                index, stamp_ns / NANOSECONDS_PER_SECOND,
+                index, (stamp_ns or message.log_time_ns) / NANOSECONDS_PER_SECOND,
                 plan.recorded_answers[index] if index < len(plan.recorded_answers) else None,
                 feeder.answers[answered] if len(feeder.answers) > answered else None))
         wall_s = time.monotonic() - start_wall_s

@@ -51,17 +51,25 @@ def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list
     return [camera, *RUN_TOPICS, (clock_topic, CLOCK_TYPE)]
 
 
-def add_record_options(parser) -> None:
+def add_record_options(parser, one_file_per_run: bool = False) -> None:
     """
     Add ``--record`` and ``--record-compressed`` to a command's argument parser.
 
     :param parser: an ``argparse.ArgumentParser``.
+    :param one_file_per_run: ``--record`` names a folder for one file per run (the
+        scorecard), not a file.
     """
-    parser.add_argument('--record', metavar='PATH', default=None,
-                        help='record the run into this rosbag2-compatible MCAP file (camera, '
-                             'camera_info, cmd_vel, odometry, ground truth, score, follower '
-                             'status, /tf, /tf_static, /clock); the simulator starts once the '
-                             'recorder hears every topic')
+    contents = ('camera, camera_info, cmd_vel, odometry, ground truth, score, follower status, '
+                '/tf, /tf_static, /clock')
+    if one_file_per_run:
+        parser.add_argument('--record', metavar='DIR', default=None,
+                            help='record each run into DIR/SCENARIO-CONFIGURATION.mcap '
+                                 f'(rosbag2-compatible MCAP: {contents})')
+    else:
+        parser.add_argument('--record', metavar='PATH', default=None,
+                            help='record the run into this rosbag2-compatible MCAP file '
+                                 f'({contents}); the simulator starts once the recorder hears '
+                                 'every topic')
     parser.add_argument('--record-compressed', action='store_true',
                         help='record the camera as JPEG (sensor_msgs/CompressedImage, about '
                              '20x smaller) instead of raw')
