@@ -155,3 +155,24 @@ def test_a_compressed_recording_holds_jpeg_frames_that_replay(tmp_path):
     assert f'{len(frames)} frames replayed, {len(frames)} with a recorded command' in (
         done.stdout)
     assert 'got no answer' not in done.stdout
+
+
+def test_scorecard_records_one_file_per_run_with_every_frame(tmp_path):
+    time_limit_s = 2.0
+    record_dir = tmp_path / 'runs'
+    done = run_command('followbot_sim.scorecard', '--scenarios', 'book_loop', '--configs',
+                       'followbot,book', '--time-limit-s', f'{time_limit_s:g}', '--jobs', '1',
+                       '--domain-id', str(run_domain_id()), '--no-json',
+                       '--record', str(record_dir))
+    assert done.returncode == 0, done.stdout
+    assert sorted(path.name for path in record_dir.iterdir()) == [
+        'book_loop-book.mcap', 'book_loop-followbot.mcap']
+    for path in record_dir.iterdir():
+        recorded = read_back(path)
+        frames = recorded[CAMERA_TOPIC]
+        # Time started only once the recorder heard everything: the first frame is there.
+        assert round(stamp_s(frames[0]) * CAMERA_HZ) == 1, path
+        assert [round(stamp_s(frame) * CAMERA_HZ) for frame in frames] == list(
+            range(1, len(frames) + 1)), path
+        assert len(frames) >= time_limit_s * CAMERA_HZ
+        assert f'recorded {path}: ' in done.stdout
