@@ -16,7 +16,7 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from followbot import recording
 from followbot.recording import (MessageDefinitions, OfferedQos, read_messages,
-                                     RecordingError, RecordingWriter)
+                                 RecordingError, RecordingWriter)
 from geometry_msgs.msg import TransformStamped, Twist
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
