@@ -355,9 +355,12 @@ def main(argv=None) -> int:
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
-            if recording is not None and not recording.started and recording.poll():
-                print('[followbot] Recorder hears every topic: the simulation starts.',
-                      flush=True)
+            if recording is not None and not recording.started:
+                if recording.poll():
+                    print('[followbot] Recorder hears every topic: the simulation starts.',
+                          flush=True)
+                elif report := recording.wait_report():
+                    print(f'[followbot] {report}', flush=True)
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.

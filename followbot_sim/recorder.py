@@ -33,6 +33,8 @@ SMALL_MESSAGE_QUEUE_DEPTH = 2000
 LARGE_MESSAGE_TYPES = frozenset(('sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage',
                                  'sensor_msgs/msg/PointCloud2'))
 TF_TOPIC = '/tf'
+# Stands for the class of a topic recorded with whatever type its publishers use.
+AS_PUBLISHED = object()
 TF_STATIC_TOPIC = '/tf_static'
 
 
@@ -104,7 +106,7 @@ class Recorder(Node):
         :param path: the ``.mcap`` file to write; an existing file is replaced.
         :param topics: (topic, message type name) pairs, such as
             ``('camera/rgb/image_raw', 'sensor_msgs/msg/Image')``; relative names are resolved
-            in the node's namespace.
+            in the node's namespace; a type of None records the type the publishers use.
         :param compression: chunk compression: 'lz4', 'zstd' or 'none'.
         :param tf_odometry_topic: where tf2_msgs is not importable, record ``/tf`` from this
             odometry topic (its header frame to its child frame).
@@ -117,6 +119,9 @@ class Recorder(Node):
         """
         classes = []
         for topic, type_name in topics:
+            if type_name is None:
+                classes.append((topic, None, AS_PUBLISHED))
+                continue
             full_type = canonical_type_name(type_name)
             message_class = import_message_class(full_type)
             if message_class is None and full_type != TF_MESSAGE_TYPE:
@@ -187,6 +192,14 @@ class Recorder(Node):
             if not publishers:
                 continue
             message_class, type_name = self._pending.pop(name)
+            if message_class is AS_PUBLISHED:
+                type_name = canonical_type_name(publishers[0].topic_type)
+                message_class = import_message_class(type_name)
+                if message_class is None:
+                    reason = f'the Python package of {type_name} is not importable'
+                    self.failures.append(f'{name}: {reason}')
+                    self.get_logger().error(f'Not recorded: {name}, {reason}.')
+                    continue
             offers = [publisher.qos_profile for publisher in publishers]
             type_hash = str(publishers[0].topic_type_hash)
             self._writer.add_topic(name, type_name, [offered_qos(offer) for offer in offers],

@@ -20,7 +20,8 @@ COMPRESSED_CAMERA_TOPIC = ('camera/rgb/image_raw/compressed', 'sensor_msgs/msg/C
 # Everything but the camera image, as (topic relative to the robot's namespace, type).
 RUN_TOPICS = (
     ('camera/rgb/camera_info', 'sensor_msgs/msg/CameraInfo'),
-    ('cmd_vel', 'geometry_msgs/msg/Twist'),
+    # Twist or TwistStamped, as the follower's cmd_vel_stamped parameter chose.
+    ('cmd_vel', None),
     ('odom', 'nav_msgs/msg/Odometry'),
     ('ground_truth/odom', 'nav_msgs/msg/Odometry'),
     ('follower/status', 'diagnostic_msgs/msg/DiagnosticArray'),
@@ -37,6 +38,8 @@ BYTES_PER_MEGABYTE = 1e6
 DRAIN_QUIET_S = 0.5
 DRAIN_LIMIT_S = 30.0
 DRAIN_SPIN_S = 0.05
+# Wall seconds after which a simulator still held for the recorder is reported, once.
+WAIT_REPORT_S = 10.0
 
 
 def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list:
@@ -101,6 +104,8 @@ class RunRecording:
         self._pause_client = None if simulator_name is None else self.recorder.create_client(
             SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
         self.started = False
+        self._created_s = time.monotonic()
+        self._wait_reported = False
 
     def poll(self) -> bool:
         """
@@ -114,6 +119,22 @@ class RunRecording:
                 self._pause_client.call_async(SetBool.Request(data=False))
             self.started = True
         return self.started
+
+    def wait_report(self) -> str | None:
+        """
+        Say once, when the simulator has been held for the recorder for long, what is missing.
+
+        :return: the line to print, or None.
+        """
+        if self.started or self._wait_reported or (
+                time.monotonic() - self._created_s < WAIT_REPORT_S):
+            return None
+        self._wait_reported = True
+        waiting = self.recorder.waiting_topics
+        missing = (f'publishers of {", ".join(waiting)}' if waiting
+                   else 'a publisher to match its subscriptions (a type or QoS mismatch?)')
+        return (f'Simulation held for {WAIT_REPORT_S:g} s: the recorder still waits for '
+                f'{missing}.')
 
     def drain(self, executor) -> None:
         """
