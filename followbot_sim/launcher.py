@@ -355,8 +355,9 @@ def main(argv=None) -> int:
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
-            if recording is not None and not recording.started:
-                if recording.poll():
+            if recording is not None:
+                started = recording.started
+                if recording.poll() and not started:
                     print('[followbot] Recorder hears every topic: the simulation starts.',
                           flush=True)
                 elif report := recording.wait_report():

@@ -10,7 +10,7 @@ send time. Where tf2_msgs is not importable, ``/tf`` can still be recorded from 
 are then encoded from TFMessage's definition.
 """
 
-from followbot.recording import (canonical_type_name, DEFAULT_COMPRESSION,
+from followbot.recording import (canonical_type_name, DEFAULT_COMPRESSION, header_stamp_ns,
                                  import_message_class, OfferedQos, RecordingError,
                                  RecordingWriter, STATIC_TF_QOS, TF_MESSAGE_TYPE)
 from geometry_msgs.msg import TransformStamped
@@ -99,7 +99,7 @@ class Recorder(Node):
 
     def __init__(self, path, topics, compression: str = DEFAULT_COMPRESSION,
                  tf_odometry_topic: str | None = None, static_transforms=(),
-                 node_name: str = RECORDER_NODE, **kwargs):
+                 node_name: str = RECORDER_NODE, progress_topic: str | None = None, **kwargs):
         """
         Create the recording and subscribe to each topic once it has a publisher.
 
@@ -113,6 +113,8 @@ class Recorder(Node):
         :param static_transforms: where tf2_msgs is not importable, the TransformStamped
             messages to record on ``/tf_static``, once, with the first message recorded.
         :param node_name: the node's name.
+        :param progress_topic: a recorded topic whose messages start with a time (``/clock``,
+            or a header): :attr:`progress_ns` is the time in the last one written.
         :param kwargs: passed to ``Node`` (``context=``, ``parameter_overrides=``, ...).
         :raises RecordingError: if a type name is invalid or its package is not importable,
             or the file cannot be created.
@@ -130,6 +132,9 @@ class Recorder(Node):
             classes.append((topic, full_type, message_class))
         super().__init__(node_name, **kwargs)
         self.failures = []
+        self.progress_ns = None
+        self._progress_topic = None if progress_topic is None else self.resolve_topic_name(
+            progress_topic)
         self._pending = {}
         fallback_tf = set()
         for topic, full_type, message_class in classes:
@@ -219,6 +224,8 @@ class Recorder(Node):
 
     def _message_callback(self, topic: str, data: bytes, info: dict) -> None:
         log_time_ns = self._log_time_ns(info)
+        if topic == self._progress_topic:
+            self.progress_ns = header_stamp_ns(data)
         self._write_static_transforms(log_time_ns)
         self._guarded(self._writer.write, topic, data, log_time_ns,
                       publish_time_ns=info['source_timestamp'],

@@ -33,11 +33,17 @@ CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 RECORDER_ODOMETRY_TOPIC = 'odom'
 PAUSE_SERVICE = 'pause'
 BYTES_PER_MEGABYTE = 1e6
+NANOSECONDS = 1e9
 # After a run, the recorder works through what it still holds until nothing has come for this
 # long (wall time), for at most DRAIN_LIMIT_S.
 DRAIN_QUIET_S = 0.5
 DRAIN_LIMIT_S = 30.0
 DRAIN_SPIN_S = 0.05
+# The simulator is held while the recorder lags this far (simulated seconds of /clock) behind
+# its clock, and let go when the lag is back under RESUME_LAG_S: the recorder's queues (5 s of
+# camera, 20 s of /clock) never overflow, however loaded the machine.
+HOLD_LAG_S = 1.0
+RESUME_LAG_S = 0.25
 # Wall seconds after which a simulator still held for the recorder is reported, once.
 WAIT_REPORT_S = 10.0
 
@@ -100,25 +106,56 @@ class RunRecording:
         self.recorder = Recorder(
             path, run_topics(compressed, clock_topic), tf_odometry_topic=RECORDER_ODOMETRY_TOPIC,
             parameter_overrides=[Parameter('use_sim_time', value=True)], cli_args=remap,
-            **kwargs)
+            progress_topic=clock_topic, **kwargs)
         self._pause_client = None if simulator_name is None else self.recorder.create_client(
             SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
         self.started = False
+        self.holding = False
+        self.holds = 0
         self._created_s = time.monotonic()
         self._wait_reported = False
 
     def poll(self) -> bool:
         """
-        Start the simulator once the recorder hears every topic (call it after each spin).
+        Start the simulator once the recorder hears every topic, hold it while the recorder lags.
+
+        Call it after each spin.
 
         :return: whether the simulator has been asked to start.
         """
-        if not self.started and self.recorder.matched and (
-                self._pause_client is None or self._pause_client.service_is_ready()):
-            if self._pause_client is not None:
-                self._pause_client.call_async(SetBool.Request(data=False))
-            self.started = True
-        return self.started
+        if not self.started:
+            if self.recorder.matched and (
+                    self._pause_client is None or self._pause_client.service_is_ready()):
+                self._set_paused(False)
+                self.started = True
+            return self.started
+        holding = self.holding
+        if self.should_hold() != holding:
+            self._set_paused(self.holding)
+        return True
+
+    def lag_s(self) -> float:
+        """Return how far (simulated seconds) the recorded /clock is behind the recorder's."""
+        progress_ns = self.recorder.progress_ns
+        if progress_ns is None:
+            return 0.0
+        return (self.recorder.get_clock().now().nanoseconds - progress_ns) / NANOSECONDS
+
+    def should_hold(self) -> bool:
+        """
+        Tell whether time should stand still until the recorder catches up.
+
+        :return: True from a lag of HOLD_LAG_S until it is back under RESUME_LAG_S.
+        """
+        lag_s = self.lag_s()
+        holding = lag_s > (RESUME_LAG_S if self.holding else HOLD_LAG_S)
+        self.holds += holding and not self.holding
+        self.holding = holding
+        return holding
+
+    def _set_paused(self, paused: bool) -> None:
+        if self._pause_client is not None:
+            self._pause_client.call_async(SetBool.Request(data=paused))
 
     def wait_report(self) -> str | None:
         """
@@ -169,8 +206,10 @@ class RunRecording:
             size = ''
         failures = f'; {len(self.recorder.failures)} not written' \
             if self.recorder.failures else ''
+        holds = (f'; time held {self.holds} times for the recorder to catch up' if self.holds
+                 else '')
         return (f'{writer.path}: {writer.message_count} messages on {len(writer.topics)} '
-                f'topics ({camera_frames} camera frames){size}{failures}')
+                f'topics ({camera_frames} camera frames){size}{failures}{holds}')
 
     def message_counts(self) -> dict:
         """Return {topic: messages written}."""

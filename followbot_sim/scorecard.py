@@ -536,6 +536,9 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
         start_s = time.monotonic()
         while True:
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+            if recording is not None and recording.holding != recording.should_hold():
+                # Time stands still (the simulator is not spun) while the recorder catches up.
+                (executor.remove_node if recording.holding else executor.add_node)(simulator)
             if tracker.laps_completed >= 1:
                 end_reason = END_LAP
             elif world.time_s >= time_limit_s:
@@ -551,7 +554,8 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
         recorded = {}
         if recording is not None:
             # Time stands still while the recorder writes what it still holds.
-            executor.remove_node(simulator)
+            if not recording.holding:
+                executor.remove_node(simulator)
             recording.drain(executor)
             recorded['recording'], recording = recording.close(), None
         width_px, height_px = world.image_size_px
