@@ -5,7 +5,10 @@ The topics are the ones a user looks at again: the camera (raw, or JPEG as image
 compressed plugin sends it), its camera_info, the follower's commands and status, odometry,
 ground truth, the score, ``/tf``, ``/tf_static`` and ``/clock``. Log times are simulated time,
 so a recording's timeline is the run's, however fast the machine ran it. The simulator starts
-paused and is let go only when the recorder hears every publisher: no first frame is missed.
+paused and is let go only when the recorder hears every publisher: no first frame is missed. It
+is held again whenever the recorder falls a simulated second behind (a loaded machine leaves
+it unscheduled), so its queues never overflow; held time is wall time only, simulated time
+stands still.
 """
 
 import time
