@@ -158,14 +158,18 @@ class RecordingPlan:
         self.camera_info_topic = camera_info_topic(self.camera_topic)
         # Each frame's camera_info by its stamp: a recording may log the two in either order.
         self.camera_infos = camera_infos.get(self.camera_info_topic, {})
-        self.clock_topic = CLOCK_TOPIC if types.get(CLOCK_TOPIC) == CLOCK_TYPE else None
+        # /clock, or a robot's own under its namespace: the only one, or none.
+        clocks = [topic for topic, name in types.items()
+                  if name == CLOCK_TYPE and topic.endswith(CLOCK_TOPIC)]
+        self.clock_topic = clocks[0] if len(clocks) == 1 else None
         command_topics = [topic for topic, name in types.items() if name in COMMAND_TYPES]
         named = [topic for topic in command_topics if topic.rsplit('/', 1)[-1] ==
                  COMMAND_TOPIC_NAME]
         self.command_topic = None
         if command_topic is not None or command_topics:
-            self.command_topic = _choose(command_topic, named or command_topics, 'command',
-                                         path)
+            self.command_topic = _choose(
+                command_topic, command_topics if command_topic else named or command_topics,
+                'command', path)
         commands = [message for message in commands if message.topic == self.command_topic]
         self.frame_times_ns = frame_times[self.camera_topic]
         self.frame_stamps_ns = frame_stamps[self.camera_topic]
