@@ -83,8 +83,8 @@ def add_record_options(parser, one_file_per_run: bool = False) -> None:
                                  f'({contents}); the simulator starts once the recorder hears '
                                  'every topic')
     parser.add_argument('--record-compressed', action='store_true',
-                        help='record the camera as JPEG (sensor_msgs/CompressedImage, about '
-                             '20x smaller) instead of raw')
+                        help='record the camera as JPEG (sensor_msgs/CompressedImage): about '
+                             '13 MB per simulated minute instead of 50 MB raw')
 
 
 class RunRecording:
