@@ -15,7 +15,10 @@ Two steering laws, chosen by ``ControllerConfig.steering_law``:
 
 With either law, a line lost for a moment (a gap in a dashed line) is driven through on the
 last command for ``line_memory_s``; a line lost for longer makes the robot stop, or rotate
-in place towards the side where it was last seen. A line found again is trusted after
+in place towards the side where it was last seen. A line the robot saw end ahead of it (the
+bands beyond the farthest that saw it held no line-coloured pixel at all) is not searched for
+when it is lost: with ``stop_at_line_end`` the robot stops there, on the end of the line,
+until the line comes back into view. A line found again is trusted after
 ``frames_to_trust`` frames in a row. The robot never drives forward without a line.
 
 Angular velocities follow ROS REP-103: positive is counter-clockwise, i.e. a left turn.
@@ -34,6 +37,7 @@ STATE_TRACKING = 'tracking'
 STATE_COASTING = 'coasting'
 STATE_ACQUIRING = 'acquiring'
 STATE_LOST = 'lost'
+STATE_LINE_END = 'line end'
 # Longest time step between frames that the acceleration limits honour; a longer pause (a
 # paused simulation, a camera hiccup) starts again from the limits, not from a huge step.
 MAX_TIME_STEP_S = 0.2
@@ -169,6 +173,7 @@ class ControllerConfig:
     line_memory_s: float = 0.3
     lost_line_behaviour: str = 'search'
     search_angular_speed_radps: float = 1.0
+    stop_at_line_end: bool = True
 
     def __post_init__(self):
         """Reject negative or non-finite numbers and unknown laws and behaviours."""
@@ -182,6 +187,8 @@ class ControllerConfig:
             _check_number(name, getattr(self, name), minimum=1e-3)
         if isinstance(self.frames_to_trust, bool) or not isinstance(self.frames_to_trust, int):
             raise TypeError(f'frames_to_trust must be an integer, got {self.frames_to_trust!r}.')
+        if not isinstance(self.stop_at_line_end, bool):
+            raise TypeError(f'stop_at_line_end must be a boolean, got {self.stop_at_line_end!r}.')
         if self.frames_to_trust < 1:
             raise ValueError(f'frames_to_trust must be at least 1, got {self.frames_to_trust}.')
         if self.min_linear_speed_mps > self.linear_speed_mps:
@@ -202,6 +209,27 @@ def _sign(value):
 
 def _clamp(value, low, high):
     return min(max(value, low), high)
+
+
+def line_ends_in_view(detection):
+    """
+    Tell whether a detection shows the line ending ahead of the robot, in the camera's view.
+
+    The line ends in view when some band saw it and every searched band beyond the farthest
+    of those held no line-coloured pixel at all: bare floor where the line would go on. (A
+    band that did not see the line reports all its line-coloured pixels as its area.) A line
+    that runs out of the top of the view, or turns out of its side while its other part still
+    shows in a band beyond, does not end in view.
+
+    :param detection: a line_detector.Detection, its bands nearest first.
+    :return: True when the line ends in view.
+    """
+    bands = detection.bands
+    farthest_seen = max((index for index, band in enumerate(bands) if band.found), default=None)
+    if farthest_seen is None:
+        return False
+    beyond = [band for band in bands[farthest_seen + 1:] if band.searched]
+    return bool(beyond) and all(band.area_px == 0 for band in beyond)
 
 
 class LineFollowingController:
@@ -234,7 +262,7 @@ class LineFollowingController:
 
     @property
     def state(self):
-        """Return what the controller is doing: waiting, tracking, coasting, acquiring, lost."""
+        """Return what it is doing: waiting, tracking, coasting, acquiring, lost, line end."""
         return self._state
 
     @property
@@ -258,6 +286,7 @@ class LineFollowingController:
         self._last_side = 0
         self._seen_streak = 0
         self._last_seen_s = -math.inf
+        self._end_in_view = False
         self._time_s = None
         self._command = self.stop_command()
         self._path_estimate = None
@@ -296,6 +325,7 @@ class LineFollowingController:
                           else self._path_target(floor_xy_m, detection.confidence))
                 self._state = STATE_TRACKING
                 self._last_seen_s = time_s
+                self._end_in_view = line_ends_in_view(detection)
                 self._last_side = _sign(target.angular_radps) or self._last_side
             else:
                 self._state = STATE_ACQUIRING
@@ -305,6 +335,12 @@ class LineFollowingController:
                     and time_s - self._last_seen_s <= config.line_memory_s):
                 self._state = STATE_COASTING
                 target = self._command
+            elif config.stop_at_line_end and (
+                    self._state == STATE_LINE_END
+                    or (self._state in (STATE_TRACKING, STATE_COASTING) and self._end_in_view)):
+                # It ended where the robot saw it end: driving on or turning to search would
+                # leave the line's end.
+                self._state = STATE_LINE_END
             elif self._state != STATE_WAITING or detection.bands:
                 self._state = STATE_LOST
         if target is None:
@@ -345,7 +381,8 @@ class LineFollowingController:
 
     def _lost_line_target(self):
         config = self._config
-        if config.lost_line_behaviour == 'stop' or self._state == STATE_WAITING:
+        if (config.lost_line_behaviour == 'stop'
+                or self._state in (STATE_WAITING, STATE_LINE_END)):
             return self.stop_command()
         # Towards the side the line was last steered to; left when it has no side.
         direction = self._last_side or 1

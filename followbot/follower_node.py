@@ -20,7 +20,8 @@ from followbot import frames
 from followbot import messages
 from followbot.compressed_image import compressed_to_array
 from followbot.controller import (ControllerConfig, LineFollowingController, LOST_LINE_BEHAVIOURS,
-                                  STATE_TRACKING, STEERING_LAWS, VelocityCommand)
+                                  STATE_LINE_END, STATE_TRACKING, STEERING_LAWS,
+                                  VelocityCommand)
 from followbot.frame_clock import FrameClock
 from followbot.ground_projection import CameraGeometry, CameraInfoError, CameraIntrinsics
 from followbot.image_conversion import array_to_image, image_to_array, ImageConversionError, to_bgr
@@ -122,6 +123,8 @@ CONTROLLER_PARAMETERS = {
     'lost_line_behaviour': ('What to do when the line is lost: '
                             + ' or '.join(LOST_LINE_BEHAVIOURS)
                             + " ('search' turns toward the side it was last seen)."),
+    'stop_at_line_end': ('Stop (zero Twist) instead of searching when the line is lost '
+                         'after the robot saw it end ahead, bare floor beyond it.'),
 }
 # Where the camera is on the robot: the path law needs it to put image points on the floor.
 # The defaults are the simulated TurtleBot 2's Kinect (followbot_sim's camera_pitch_deg).
@@ -488,6 +491,8 @@ class FollowerNode(Node):
         self._line_was_found = found
         if found:
             self.get_logger().info('Line found.')
+        elif self._controller.state == STATE_LINE_END:
+            self.get_logger().info('Line ended ahead: stopped at its end.')
         else:
             self.get_logger().warn(
                 'Line lost: ' + ('searching toward where it was last seen.'

@@ -14,6 +14,8 @@ class ParameterSpec:
     low: float | None = None
     high: float | None = None
     read_only: bool = False
+    # A parameter that takes values of several types (a count or a list of names, say).
+    dynamic_typing: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
         """
@@ -21,7 +23,8 @@ class ParameterSpec:
 
         :return: the descriptor.
         """
-        descriptor = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        descriptor = ParameterDescriptor(description=self.description, read_only=self.read_only,
+                                         dynamic_typing=self.dynamic_typing)
         if self.low is None:
             return descriptor
         if isinstance(self.default, int) and not isinstance(self.default, bool):

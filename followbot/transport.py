@@ -119,12 +119,17 @@ def use_package_profile() -> str | None:
     chosen = users_fastdds_configuration(os.environ)
     if chosen == NOT_FASTDDS:
         return None
-    if chosen is not None:
-        return f'Fast DDS configuration: yours ({chosen}).'
     try:
         path = str(fastdds_profile_path())
     except FileNotFoundError as error:
-        return f'Fast DDS configuration: its defaults; camera images may be lost ({error})'
+        path = None
+        missing = error
+    # The followbot launcher exports the package's profile for its nodes: that is not the
+    # user's choice, and is said as what it is.
+    if chosen is not None and chosen != f'{FASTDDS_PROFILE_VARIABLE}={path}':
+        return f'Fast DDS configuration: yours ({chosen}).'
+    if path is None:
+        return f'Fast DDS configuration: its defaults; camera images may be lost ({missing})'
     os.environ[FASTDDS_PROFILE_VARIABLE] = path
     return (f"Fast DDS configuration: followbot's profile {path}, so images go whole through "
             f'shared memory (set {FASTDDS_PROFILE_VARIABLE} to use your own).')

@@ -9,8 +9,9 @@ Three measurements, each printed as a table with the comparison side by side:
   without the copy), on the same frames rendered by the simulator along a course.
 * **Camera to cmd_vel** between two processes: a stand-in camera
   (:mod:`followbot_sim.latency_probe`) sends those frames to the real follower process at 20 and
-  30 Hz and times each command against the stamp of the image it answers; with the project's
-  Fast DDS profile and with Fast DDS's defaults.
+  30 Hz and times each command against the stamp of the image it answers; with nothing
+  exported (each node applies the package's Fast DDS profile itself) and with Fast DDS's
+  defaults.
 * **Simulator speed** with the follower in the loop: the simulator and the follower as two
   processes, headless, in lockstep, as fast as possible.
 
@@ -19,7 +20,9 @@ Every process's peak memory (its largest resident set) is reported. Figures are 
 """
 
 import argparse
+import dataclasses
 import json
+import math
 import os
 from pathlib import Path
 import platform
@@ -32,12 +35,18 @@ import time
 
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
-from followbot.image_conversion import array_to_image, image_to_array
+from followbot.compressed_image import array_to_compressed, compressed_to_array
+from followbot.follower_node import FOLLOWER_PARAMETERS
+from followbot.ground_projection import CameraGeometry
+from followbot.image_conversion import (array_to_image, dtype_of, expected_shape, from_rgb,
+                                        image_to_array)
 from followbot.line_detector import DetectorConfig, hsv_bounds, LineDetector
 from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSignals
-from followbot.transport import (environment_with_profile, environment_without_profile,
-                                 FASTDDS_PROFILE_NAME, fastdds_profile_path, keep_large_buffers)
+from followbot.transport import (environment_without_profile, keep_large_buffers,
+                                 USER_CONFIGURATION_VARIABLES)
+from followbot_sim import real_frames
 from followbot_sim.course_file import load_course
+from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.score import score_values
 from followbot_sim.score import SIMULATOR_NODE
 from followbot_sim.world import FollowbotWorld
@@ -49,7 +58,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import SetBool
 
-SECTIONS = ('perception', 'latency', 'simulation')
+SECTIONS = ('perception', 'real_frames', 'latency', 'simulation')
+# Encodings of real cameras timed besides bgr8 and JPEG: a USB webcam's and a raw sensor's.
+CAMERA_ENCODINGS = ('yuv422_yuy2', 'bayer_rggb8')
 COURSE = 'book_loop'
 IMAGE_WIDTH_PX = 640
 IMAGE_HEIGHT_PX = 480
@@ -165,7 +176,29 @@ def _time_per_frame_us(function, image_messages, repeats: int) -> np.ndarray:
     return times_us
 
 
-def measure_perception(frames_bgr: np.ndarray, repeats: int) -> dict:
+def follower_geometry(intrinsics: tuple) -> CameraGeometry:
+    """
+    Return the camera geometry the follower knows with its default mounting parameters.
+
+    :param intrinsics: (fx, fy, cx, cy) of the frames, as their camera_info says.
+    :return: the CameraGeometry the follower projects with.
+    """
+    fx_px, fy_px, cx_px, cy_px = intrinsics
+    camera_matrix = (fx_px, 0.0, cx_px, 0.0, fy_px, cy_px, 0.0, 0.0, 1.0)
+    return CameraGeometry.from_camera_matrix(
+        camera_matrix, FOLLOWER_PARAMETERS['camera_height_m'].default,
+        math.radians(FOLLOWER_PARAMETERS['camera_pitch_deg'].default),
+        FOLLOWER_PARAMETERS['camera_forward_m'].default)
+
+
+def _in_encoding(frame_bgr: np.ndarray, encoding: str):
+    """Return an Image message of a BGR frame as a camera of that encoding would send it."""
+    out = np.empty(expected_shape(*frame_bgr.shape[:2], encoding), dtype_of(encoding))
+    return array_to_image(from_rgb(cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2RGB), encoding, out),
+                          encoding)
+
+
+def measure_perception(frames_bgr: np.ndarray, repeats: int, intrinsics: tuple) -> dict:
     """
     Time the follower's detector and the book's pipeline on the same frames.
 
@@ -174,11 +207,27 @@ def measure_perception(frames_bgr: np.ndarray, repeats: int) -> dict:
     :param frames_bgr: (N, H, W, 3) uint8 BGR frames, in driving order.
     :param repeats: times each frame is processed (in order, so the follower's detector keeps
         its expectations from frame to frame as in a run).
+    :param intrinsics: (fx, fy, cx, cy) of the frames, for the follower's camera geometry.
     :return: per pipeline: ``median_us``, ``p99_us``, ``calls``; and ``frames``.
     """
     image_messages = [array_to_image(frame, 'bgr8') for frame in frames_bgr]
+    # What other cameras send of the same frames: each pipeline starts from its own messages.
+    messages_by_input = {
+        'bgr8': image_messages,
+        'jpeg': [array_to_compressed(frame, 'bgr8') for frame in frames_bgr],
+        **{encoding: [_in_encoding(frame, encoding) for frame in frames_bgr]
+           for encoding in CAMERA_ENCODINGS},
+    }
+    geometry = follower_geometry(intrinsics)
     config = DetectorConfig()
     followbot = LineDetector(config)
+    # As in the follower node: each input decoded, then detected with the camera's geometry.
+    with_geometry = LineDetector(config)
+
+    def follow(pixels_and_encoding):
+        image, encoding = pixels_and_encoding
+        return with_geometry.detect(image, encoding, geometry)
+
     book_band = LineDetector(DetectorConfig(
         band_count=1, band_center_fraction=(3 * IMAGE_HEIGHT_PX // 4 + BOOK_BAND_ROWS_PX / 2)
         / IMAGE_HEIGHT_PX, band_height_px=BOOK_BAND_ROWS_PX, min_area_px=1))
@@ -191,11 +240,18 @@ def measure_perception(frames_bgr: np.ndarray, repeats: int) -> dict:
         'book_full_frame': lambda msg: book.detect(np.array(image_to_array(msg))),
         # Its OpenCV steps alone, on a view of the message as this package reads it.
         'book_opencv_only': lambda msg: book.detect(image_to_array(msg)),
+        'follower_bgr8': lambda msg: follow((image_to_array(msg), msg.encoding)),
+        'follower_jpeg': lambda msg: follow(compressed_to_array(msg)),
+        **{f'follower_{encoding}': lambda msg: follow((image_to_array(msg), msg.encoding))
+           for encoding in CAMERA_ENCODINGS},
     }
     results = {'frames': len(image_messages)}
     for name, pipeline in pipelines.items():
-        pipeline(image_messages[0])  # First call: buffers and OpenCV's dispatch.
-        times_us = _time_per_frame_us(pipeline, image_messages, repeats)
+        kind = name.removeprefix('follower_') if name.startswith('follower_') else 'bgr8'
+        inputs = messages_by_input[kind]
+        with_geometry.reset()
+        pipeline(inputs[0])  # First call: buffers and OpenCV's dispatch.
+        times_us = _time_per_frame_us(pipeline, inputs, repeats)
         figures = _percentiles(times_us)
         results[name] = {'median_us': figures['median'], 'p99_us': figures['p99'],
                          'calls': len(times_us)}
@@ -217,12 +273,65 @@ def format_perception(results: dict) -> str:
         'followbot_book_band': "followbot's detector on the book's band (1 band, 20 rows)",
         'book_full_frame': "the book's pipeline (cv_bridge's copy, whole frame to HSV, 1 band)",
         'book_opencv_only': "the book's OpenCV steps alone (no copy)",
+        'follower_bgr8': 'the follower: bgr8 Image, with the camera geometry',
+        'follower_jpeg': 'the follower: JPEG CompressedImage (decode + detect)',
+        **{f'follower_{encoding}': f'the follower: {encoding} Image (convert + detect)'
+           for encoding in CAMERA_ENCODINGS},
     }
     rows = [(label, _number(results[key]['median_us']), _number(results[key]['p99_us']),
              f"{book_us / results[key]['median_us']:.1f}×")
             for key, label in names.items()]
     return _markdown_table(['pipeline, Image message to line position', 'median µs',
                             'p99 µs', 'book ÷ this (median)'], rows)
+
+
+def measure_real_frames(pictures_dir: Path | None = None) -> dict:
+    """
+    Score the default follower's detector on the labelled real camera frames, per source.
+
+    :param pictures_dir: where to save a schematic (labels and verdicts, none of the frame's
+        pixels) of every frame with a band not right, or None.
+    :return: ``folder`` and ``rows`` (source, colour, PerceptionTally fields), or ``error``
+        saying why there are no frames.
+    """
+    folder, reason = real_frames.frames_folder()
+    if folder is None:
+        return {'error': reason}
+    rows = []
+    for source in real_frames.load_labels():
+        for colour in real_frames.LABELLED_COLOURS:
+            frames = [frame for frame in source.frames if frame.polylines(colour)]
+            if not frames:
+                continue
+            tally, results = real_frames.score_source(source, folder, colour, frames)
+            for result in results:
+                if pictures_dir is not None and set(result.verdicts) != {RIGHT}:
+                    pictures_dir.mkdir(parents=True, exist_ok=True)
+                    cv2.imwrite(str(pictures_dir / f'{Path(result.frame.name).stem}_{colour}.png'),
+                                real_frames.draw_schematic(result))
+            rows.append({'source': source.name, 'colour': colour,
+                         **dataclasses.asdict(tally)})
+    return {'folder': str(folder), 'rows': rows}
+
+
+def format_real_frames(results: dict) -> str:
+    """
+    Make the real-frame table.
+
+    :param results: from :func:`measure_real_frames`.
+    :return: Markdown, or the reason there is no table.
+    """
+    if 'error' in results:
+        return f"No table: {results['error']}"
+    rows = []
+    for row in results['rows']:
+        tally = PerceptionTally(**{key: row[key] for key in row
+                                   if key not in ('source', 'colour')})
+        rows.append((row['source'], row['colour'], tally.frames, tally.bands,
+                     f'{100 * tally.right_share:.1f}', f'{100 * tally.false_share:.1f}',
+                     f'{100 * tally.share(tally.missed):.1f}', tally.confident_false_frames))
+    return _markdown_table(['source', 'line colour (preset)', 'frames', 'bands', 'right %',
+                            'false %', 'missed %', 'frames confidently false'], rows)
 
 
 class ChildProcess:
@@ -298,16 +407,25 @@ class ChildProcess:
         return '\n'.join(self.log_path.read_text(errors='replace').splitlines()[-lines:])
 
 
-def _node_environment(domain_id: int, with_profile: bool) -> tuple:
+# The Fast DDS configurations the latency is measured with: what a user gets running the nodes
+# with nothing exported (each node applies the package's profile itself), and Fast DDS's own
+# defaults (as a user who asks for them with FASTDDS_BUILTIN_TRANSPORTS=DEFAULT).
+NOTHING_EXPORTED = 'nothing exported'
+FASTDDS_DEFAULTS = "Fast DDS's defaults"
+DDS_CONFIGURATIONS = (NOTHING_EXPORTED, FASTDDS_DEFAULTS)
+
+
+def _node_environment(domain_id: int, configuration: str) -> dict:
     environment = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
                        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', RCUTILS_COLORIZED_OUTPUT='0')
-    if with_profile:
-        return environment_with_profile(environment)
-    return environment_without_profile(environment), "Fast DDS's defaults"
+    if configuration == NOTHING_EXPORTED:
+        return {name: value for name, value in environment.items()
+                if name not in USER_CONFIGURATION_VARIABLES}
+    return environment_without_profile(environment)
 
 
 def measure_latency(frames_file: Path, intrinsics: tuple, rate_hz: float, frame_count: int,
-                    with_profile: bool, domain_id: int, log_folder: Path) -> dict:
+                    configuration: str, domain_id: int, log_folder: Path) -> dict:
     """
     Run the follower and the latency probe as two processes and collect the probe's figures.
 
@@ -315,14 +433,15 @@ def measure_latency(frames_file: Path, intrinsics: tuple, rate_hz: float, frame_
     :param intrinsics: (fx, fy, cx, cy) of those frames.
     :param rate_hz: frames per second.
     :param frame_count: frames measured.
-    :param with_profile: whether both processes use the project's Fast DDS profile.
+    :param configuration: the Fast DDS configuration of both processes, from
+        DDS_CONFIGURATIONS.
     :param domain_id: a ROS domain no one else uses while this runs.
     :param log_folder: where the processes' logs go.
     :return: ``p50_ms``, ``p99_ms``, ``max_ms``, ``answered``, ``dropped``, ``frames``,
         ``profile``, peak memories (MiB), or ``error``.
     """
-    environment, profile = _node_environment(domain_id, with_profile)
-    tag = f"{rate_hz:g}hz_{'profile' if with_profile else 'defaults'}"
+    environment = _node_environment(domain_id, configuration)
+    tag = f'{rate_hz:g}hz_{DDS_CONFIGURATIONS.index(configuration)}'
     follower = ChildProcess('followbot.follower_node', [
         '--ros-args', '-p', 'cmd_vel_stamped:=true', '--log-level', 'warn'],
         environment, log_folder / f'follower_{tag}.log')
@@ -331,7 +450,7 @@ def measure_latency(frames_file: Path, intrinsics: tuple, rate_hz: float, frame_
         '--frames-file', str(frames_file), '--intrinsics', *map(str, intrinsics),
         '--rate-hz', str(rate_hz), '--frames', str(frame_count),
         '--json-out', str(figures_file)], environment, log_folder / f'probe_{tag}.log')
-    result = {'rate_hz': rate_hz, 'profile': profile, 'frames': frame_count}
+    result = {'rate_hz': rate_hz, 'profile': configuration, 'frames': frame_count}
     try:
         if not probe.wait(frame_count / rate_hz + PROCESS_GRACE_S):
             probe.stop()
@@ -362,11 +481,10 @@ def format_latency(results: list) -> str:
     :return: Markdown.
     """
     rows = []
-    package_profile = str(fastdds_profile_path())
     for result in results:
         profile = result['profile']
-        if profile == package_profile:
-            profile = f"the package's profile ({FASTDDS_PROFILE_NAME})"
+        if profile == NOTHING_EXPORTED:
+            profile = "nothing exported (the nodes apply the package's profile)"
         if 'error' in result:
             rows.append((f"{result['rate_hz']:g} Hz", profile, 'failed', '', '', '', '', ''))
             continue
@@ -410,7 +528,7 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
     :return: ``simulated_per_wall`` (from the score messages' arrival times), ``simulated_s``,
         ``wall_s``, ``laps``, ``rms_cm``, peak memories (MiB), or ``error``.
     """
-    environment, profile = _node_environment(domain_id, with_profile=True)
+    environment = _node_environment(domain_id, NOTHING_EXPORTED)
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     listener = _ScoreListener(context=context)
@@ -428,7 +546,7 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
         '-p', f'image_width_px:={IMAGE_WIDTH_PX}', '-p', f'image_height_px:={IMAGE_HEIGHT_PX}',
         '-p', f'camera_rate_hz:={CAMERA_RATE_HZ}', '-p', 'score_period_s:=1.0'],
         environment, log_folder / 'sim_simulation.log')
-    result = {'simulated_s': simulated_s, 'profile': profile}
+    result = {'simulated_s': simulated_s, 'profile': NOTHING_EXPORTED}
     try:
         deadline_s = time.monotonic() + PROCESS_GRACE_S
         while not (listener.subscription.get_publisher_count() > 0
@@ -523,6 +641,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
                         help='ROS domain of the runs, which take turns in it (default: from '
                              'the process id, in 100..199)')
+    parser.add_argument('--real-frame-pictures', type=Path, default=None, metavar='DIR',
+                        help='real_frames: save a schematic of every frame not all right '
+                             "(labels and verdicts, none of the frame's pixels) in DIR")
     parser.add_argument('--json', type=Path, default=None, metavar='FILE',
                         help='also write the figures to this JSON file')
     refuse_ros_arguments(parser, argv, 'it starts its own nodes with the settings it measures.')
@@ -565,22 +686,27 @@ def main(argv=None) -> int:
         if needs_frames:
             frames_bgr, intrinsics = render_course_frames(options.frames)
         if 'perception' in options.sections and not stop.is_set():
-            perception = measure_perception(frames_bgr, options.repeats)
+            perception = measure_perception(frames_bgr, options.repeats, intrinsics)
             report['perception'] = perception
             print(f'## Perception per {IMAGE_WIDTH_PX}x{IMAGE_HEIGHT_PX} frame '
                   f"({perception['frames']} frames rendered around {COURSE}, each "
                   f'{options.repeats} times)\n\n{format_perception(perception)}\n', flush=True)
+        if 'real_frames' in options.sections and not stop.is_set():
+            real = measure_real_frames(options.real_frame_pictures)
+            report['real_frames'] = real
+            print('## The default follower on real camera frames (per band, against labels made '
+                  f'by looking)\n\n{format_real_frames(real)}\n', flush=True)
         if 'latency' in options.sections and not stop.is_set():
             frames_file = folder / 'frames.npy'
             np.save(frames_file, frames_bgr)
             latency = []
             for rate_hz in options.rates:
-                for with_profile in (True, False):
+                for configuration in DDS_CONFIGURATIONS:
                     if stop.is_set():
                         break
                     latency.append(measure_latency(
                         frames_file, intrinsics, rate_hz, options.latency_frames,
-                        with_profile, options.domain_id, folder))
+                        configuration, options.domain_id, folder))
             report['latency'] = latency
             failed |= any('error' in result for result in latency)
             print('## Camera image to the cmd_vel it causes, between two processes '

@@ -284,7 +284,8 @@ class Course:
 
     def __init__(self, centre_line_xy, line_width_m=BOOK_LINE_WIDTH_M,
                  floor_size_m=BOOK_FLOOR_SIZE_M, name='custom', *, dash_length_m=None,
-                 gap_length_m=None, distractors=(), lighting_zones=(), floor_image_rgb=None):
+                 gap_length_m=None, distractors=(), lighting_zones=(), floor_image_rgb=None,
+                 painted_interval_m=None):
         """
         Build a course from the points of its closed centre line.
 
@@ -302,10 +303,15 @@ class Course:
         :param floor_image_rgb: an (H, W, 3) uint8 RGB image of the whole floor, row 0 at the
             north edge, column 0 at the west edge, shown instead of painting the line (the
             centre line then only serves the scoring); None paints the line.
+        :param painted_interval_m: ``(begin_m, end_m)``: paint the line only over these arc
+            lengths in metres, ``begin_m`` negative to begin behind the start, so that it
+            ends square at both and the rest of the loop is bare floor that only the scoring
+            knows (a line that ends); None paints the whole loop.
         :raises ValueError: if the points are not a finite loop of at least three distinct
             points, a size is not positive, the line leaves the floor, the dash options are
-            not both positive (or both None), a dash and a gap are longer than the loop, or
-            the floor image is not an RGB uint8 image or comes with dashes.
+            not both positive (or both None), a dash and a gap are longer than the loop,
+            ``painted_interval_m`` is not a part of the loop holding the start, or the floor
+            image is not an RGB uint8 image or comes with dashes or a painted interval.
         :raises TypeError: if a distractor or lighting zone is not of its class.
         """
         if not (math.isfinite(floor_size_m) and floor_size_m > 0.0):
@@ -329,7 +335,7 @@ class Course:
         self._points_xy.setflags(write=False)
         self._build_segment_table()
         self._set_paint_options(dash_length_m, gap_length_m, distractors, lighting_zones,
-                                floor_image_rgb)
+                                floor_image_rgb, painted_interval_m)
 
     def _build_segment_table(self):
         """
@@ -358,7 +364,7 @@ class Course:
         self._segment_heading_rad = np.arctan2(self._delta_y, self._delta_x)
 
     def _set_paint_options(self, dash_length_m, gap_length_m, distractors, lighting_zones,
-                           floor_image_rgb):
+                           floor_image_rgb, painted_interval_m):
         """
         Validate and keep the options that change only how the floor is painted.
 
@@ -367,6 +373,7 @@ class Course:
         :param distractors: see :meth:`__init__`.
         :param lighting_zones: see :meth:`__init__`.
         :param floor_image_rgb: see :meth:`__init__`.
+        :param painted_interval_m: see :meth:`__init__`.
         :raises ValueError: as :meth:`__init__` says.
         :raises TypeError: as :meth:`__init__` says.
         """
@@ -386,11 +393,39 @@ class Course:
                 self._dash_length_m, self._gap_length_m, self._length_m)
         self._distractors = self._as_tuple_of('distractors', distractors, Distractor)
         self._lighting_zones = self._as_tuple_of('lighting_zones', lighting_zones, LightingZone)
+        self._painted_interval_m = None
+        if painted_interval_m is not None:
+            self._painted_interval_m = self._as_painted_interval(painted_interval_m)
         self._floor_image_rgb = _as_floor_image(floor_image_rgb)
-        if self._floor_image_rgb is not None and self._dash_length_m is not None:
+        if self._floor_image_rgb is not None and not (
+                self._dash_length_m is None and self._painted_interval_m is None):
             raise ValueError(
                 'a course with floor_image_rgb shows the line the image holds, so it cannot '
-                'paint dashes; leave dash_length_m and gap_length_m None.')
+                'paint dashes or a line end; leave dash_length_m, gap_length_m and '
+                'painted_interval_m None.')
+
+    def _as_painted_interval(self, painted_interval_m):
+        """
+        Check the arc interval of a line that ends: it holds the start and not the whole loop.
+
+        :param painted_interval_m: ``(begin_m, end_m)`` in metres.
+        :return: the interval as a tuple of two floats.
+        :raises ValueError: if it is not two finite numbers with
+            ``-length < begin_m <= 0 < end_m < begin_m + length``.
+        """
+        try:
+            begin_m, end_m = painted_interval_m
+        except (TypeError, ValueError):
+            raise ValueError('painted_interval_m must be two arc lengths (begin_m, end_m), '
+                             f'got {painted_interval_m!r}.') from None
+        begin_m = _require_finite('painted_interval_m begin', begin_m)
+        end_m = _require_finite('painted_interval_m end', end_m)
+        if not -self._length_m < begin_m <= 0.0 < end_m < begin_m + self._length_m:
+            raise ValueError(
+                f'painted_interval_m ({begin_m}, {end_m}) must hold the start (begin <= 0 < '
+                f'end) and be shorter than the loop, which is {self._length_m:.3f} m long; '
+                'None paints all of it.')
+        return begin_m, end_m
 
     @staticmethod
     def _as_tuple_of(name, items, item_class):
@@ -424,7 +459,7 @@ class Course:
 
         :param changes: constructor arguments by name (``centre_line_xy``, ``line_width_m``,
             ``floor_size_m``, ``name``, ``dash_length_m``, ``gap_length_m``, ``distractors``,
-            ``lighting_zones``, ``floor_image_rgb``).
+            ``lighting_zones``, ``floor_image_rgb``, ``painted_interval_m``).
         :return: the new course.
         :raises TypeError: if a name is not a constructor argument.
         :raises ValueError: if the new options are invalid, as for the constructor.
@@ -435,6 +470,7 @@ class Course:
             'dash_length_m': self._dash_length_m, 'gap_length_m': self._gap_length_m,
             'distractors': self._distractors, 'lighting_zones': self._lighting_zones,
             'floor_image_rgb': self._floor_image_rgb,
+            'painted_interval_m': self._painted_interval_m,
         }
         unknown = sorted(set(changes) - set(options))
         if unknown:
@@ -477,6 +513,11 @@ class Course:
     def gap_length_m(self):
         """Return the length of a gap between dashes in metres, None for a solid line."""
         return self._gap_length_m
+
+    @property
+    def painted_interval_m(self):
+        """Return the arc lengths ``(begin_m, end_m)`` of a line that ends, None for a loop."""
+        return self._painted_interval_m
 
     @property
     def distractors(self):
@@ -636,14 +677,35 @@ class Course:
 
     def dash_signed_distance_m(self, arc_length_m):
         """
-        Measure how far arc lengths are inside a painted dash.
+        Measure how far arc lengths are inside the paint along the line.
+
+        The paint is the dashes of a dashed line, cut to the painted interval of a line that
+        ends.
 
         :param arc_length_m: arc length(s) in metres, taken modulo the course length.
-        :return: the distance along the line to the nearest end of a dash, positive on a dash
-            and negative in a gap, as a float array shaped like the input; ``inf`` everywhere
-            for a solid line.
+        :return: the distance along the line to the nearest end of a dash (or of the painted
+            interval), positive on paint and negative in a gap, as a float array shaped like the
+            input; ``inf`` everywhere for a solid loop.
         """
         arc_m = np.mod(np.asarray(arc_length_m, dtype=float), self._length_m)
+        if self._painted_interval_m is None:
+            return self._dash_only_signed_distance_m(arc_m)
+        begin_m, end_m = self._painted_interval_m
+        # Arc from the beginning of the paint: paint on [0, painted), bare floor after it.
+        from_begin_m = np.mod(arc_m - begin_m, self._length_m)
+        painted_m = end_m - begin_m
+        on_paint_m = np.minimum(from_begin_m, painted_m - from_begin_m)
+        off_paint_m = np.minimum(from_begin_m - painted_m, self._length_m - from_begin_m)
+        paint_m = np.where(from_begin_m < painted_m, on_paint_m, -off_paint_m)
+        return np.minimum(paint_m, self._dash_only_signed_distance_m(arc_m))
+
+    def _dash_only_signed_distance_m(self, arc_m):
+        """
+        Measure how far arc lengths are inside a painted dash, ignoring the painted interval.
+
+        :param arc_m: array of arc lengths in [0, length) metres.
+        :return: as :meth:`dash_signed_distance_m` for the dashes alone.
+        """
         if self._dash_length_m is None:
             return np.full(arc_m.shape, np.inf)
         index = np.searchsorted(self._dash_starts_m, arc_m, side='right') - 1
@@ -712,14 +774,14 @@ class Course:
         half_width_px = self._line_width_m * px_per_m / 2.0
         reach_px = half_width_px + _ANTI_ALIAS_HALF_PX
         along_coverage = None
-        if self._dash_length_m is not None:
+        if self._dash_length_m is not None or self._painted_interval_m is not None:
             along_coverage = functools.partial(self._dash_share, px_per_m=px_per_m)
         return _closed_polyline_coverage(
             np.stack([col, row], axis=1), size_px, reach_px, along_coverage)
 
     def _dash_share(self, segment_index, fraction, px_per_m):
         """
-        Compute the share of pixels that the dashes cover along the line.
+        Compute the share of pixels that the dashes (or the line that ends) cover along it.
 
         :param segment_index: integer array of the segments of the pixels' nearest points.
         :param fraction: float array of the nearest points' fractions along those segments.

@@ -77,6 +77,40 @@ _BOOK_LOOP_DISTRACTORS = (
     (16.2, 0.45, 0.35, 0.15, 90.0),  # a stripe pointing at the line inside the south bend
 )
 
+# hairpins: a rounded rectangle whose long sides each grow two fingers, one pointing out of the
+# loop and one into it, so the robot drives right and left hairpins of 0.15 m centre-line radius
+# (issue 14 saw a follower lose the line at ~0.14 m hairpins on public tracks). A finger's legs
+# run 0.30 m apart, so the 0.19 m lines leave an 0.11 m gap between them.
+_HAIRPIN_TIGHT_RADIUS_M = 0.15
+_FINGER_LEG_M = 1.0
+_FINGER_CORNER_RADIUS_M = 0.3
+_HAIRPINS_CORNER_RADIUS_M = 0.5
+_HAIRPINS_SIDE_STRAIGHT_M = 1.0
+_HAIRPINS_END_STRAIGHT_M = 3.0
+
+# sharp_corners: a pentagon whose five straight sides meet at corners turning 120 degrees (a
+# 60-degree angle between the sides), four left and one right; side lengths a, b, c, d, e with
+# b + d = c + e = a close it, since unit vectors 120 degrees apart sum to zero. The start is in
+# the middle of the first (south) side, heading east.
+_SHARP_CORNERS_TURN_RAD = math.radians(120.0)
+_SHARP_CORNERS_SIDES_M = (8.0, 5.0, 2.0, 3.0, 6.0)
+_SHARP_CORNERS_TURNS = (+1, +1, -1, +1, +1)
+
+# t_junction: the book loop with stubs of line branching off square to it, a T the follower must
+# drive straight through; as (arc length, +1 left / -1 right). Each stub is painted like the line,
+# 0.19 m wide, from the centre line out to 0.5 m from it, on the gentle parts of the loop.
+_T_JUNCTION_STUBS = ((2.5, +1), (9.5, -1), (13.0, +1))
+_STUB_LENGTH_M = 0.5
+
+# line_end: a rounded rectangle whose line is painted only from 1 m behind the start (in the
+# middle of its east side) up that side, round the north-east corner and 2 m along the north
+# side, where the line stops; the rest of the loop is bare floor (the scoring's centre line).
+# The floor ahead of the end stays bare for more than the ~2.7 m the camera sees.
+_LINE_END_SIDES_M = (3.0, 4.0)
+_LINE_END_CORNER_RADIUS_M = 1.0
+_LINE_END_PAINTED_BEHIND_START_M = 1.0
+_LINE_END_PAINTED_ALONG_NORTH_SIDE_M = 2.0
+
 # with_lighting_zones: pools of bright and dim light alternating along the line, centred on it
 # at these fractions of its length (none reaches the start), each covering ~1.6 m of line.
 LIGHTING_ZONE_FRACTIONS = (0.125, 0.375, 0.625, 0.875)
@@ -301,6 +335,115 @@ def dashed():
                                gap_length_m=_GAP_LENGTH_M)
 
 
+def _centred(points_xy):
+    """
+    Shift points so that their bounding box is centred on the origin.
+
+    :param points_xy: (N, 2) points in metres.
+    :return: the shifted (N, 2) points.
+    """
+    points_xy = np.asarray(points_xy, dtype=float)
+    return points_xy - (points_xy.min(axis=0) + points_xy.max(axis=0)) / 2.0
+
+
+def _finger(turn):
+    """
+    Return the turtle pieces of a finger: a square turn off the side, a hairpin and back.
+
+    :param turn: -1 to turn right off the side first (a left hairpin), +1 to turn left first.
+    :return: a list of :class:`Straight` and :class:`Arc` pieces that leave the heading as it
+        was, 2 x (corner radius + hairpin radius) further along the side.
+    """
+    corner = Arc(_FINGER_CORNER_RADIUS_M, turn * math.pi / 2.0)
+    return [corner, Straight(_FINGER_LEG_M), Arc(_HAIRPIN_TIGHT_RADIUS_M, -turn * math.pi),
+            Straight(_FINGER_LEG_M), corner]
+
+
+def hairpins():
+    """
+    Build a loop with four hairpins of 0.15 m centre-line radius, two left and two right.
+
+    A rounded rectangle (0.5 m corners) run counter-clockwise, each long side carrying a finger
+    out of the loop (a left hairpin) and one into it (a right hairpin); a finger's legs are
+    1 m long and 0.30 m apart, joined to the side by 0.3 m quarter turns. About 5.8 m x 6.9 m
+    and 27 m long; the start is in the middle of the east side, heading north.
+
+    :return: the course, named 'hairpins'.
+    """
+    corner = Arc(_HAIRPINS_CORNER_RADIUS_M, math.pi / 2.0)
+    side = Straight(_HAIRPINS_SIDE_STRAIGHT_M)
+    long_side = [side, *_finger(-1), side, *_finger(+1), side]
+    half_end = Straight(_HAIRPINS_END_STRAIGHT_M / 2.0)
+    segments = [half_end, corner, *long_side, corner, Straight(_HAIRPINS_END_STRAIGHT_M),
+                corner, *long_side, corner, half_end]
+    points_xy = turtle_loop_xy((0.0, 0.0, math.pi / 2.0), segments)
+    return Course(_centred(points_xy), name='hairpins')
+
+
+def sharp_corners():
+    """
+    Build a pentagon whose corners each turn 120 degrees: four left, one right.
+
+    Every corner leaves a 60-degree angle between the sides (sharper than the ~95-degree
+    turns issue 14 saw a follower fail at); 8 m x 5.2 m and 24 m long, run counter-clockwise
+    from the middle of its south side.
+
+    :return: the course, named 'sharp_corners'.
+    """
+    vertices_xy = [(0.0, 0.0)]
+    heading_rad = 0.0
+    for side_m, turn in zip(_SHARP_CORNERS_SIDES_M, _SHARP_CORNERS_TURNS):
+        x_m, y_m = vertices_xy[-1]
+        vertices_xy.append((x_m + side_m * math.cos(heading_rad),
+                            y_m + side_m * math.sin(heading_rad)))
+        heading_rad += turn * _SHARP_CORNERS_TURN_RAD
+    # The last side ends where the first began; start halfway along the first.
+    closing_vertex = vertices_xy.pop()
+    if math.hypot(*closing_vertex) > TURTLE_CLOSURE_TOLERANCE_M:
+        raise ValueError(f'the sharp_corners sides do not close: they end at {closing_vertex}.')
+    start_xy = ((vertices_xy[0][0] + vertices_xy[1][0]) / 2.0, vertices_xy[0][1])
+    return Course(_centred([start_xy, *vertices_xy[1:], vertices_xy[0]]), name='sharp_corners')
+
+
+def t_junction():
+    """
+    Build the book loop with three T-junctions: stubs of line square to it, to be ignored.
+
+    Each stub is as wide as the line and reaches 0.5 m from the centre line, two to the left
+    (inside) and one to the right; the follower must drive straight past them on the loop.
+
+    :return: the course, named 't_junction'.
+    """
+    course = book_loop()
+    stubs = tuple(
+        distractor_beside(course, arc_m, side * _STUB_LENGTH_M / 2.0, course.line_width_m,
+                          _STUB_LENGTH_M)
+        for arc_m, side in _T_JUNCTION_STUBS)
+    return course.replace(name='t_junction', distractors=stubs)
+
+
+def line_end():
+    """
+    Build a line that ends: 6.1 m of a rounded rectangle's line, then bare floor.
+
+    The painted line begins 1 m behind the start, runs 2.5 m north past it, round a 1 m corner
+    to the west and 2 m on, where it stops square, 5.07 m after the start; the follower must
+    stop there. The rest of the 6 m x 5 m loop is the scoring's centre line only.
+
+    :return: the course, named 'line_end'.
+    """
+    side_ns_m, side_ew_m = _LINE_END_SIDES_M
+    corner = Arc(_LINE_END_CORNER_RADIUS_M, math.pi / 2.0)
+    half_side = Straight(side_ns_m / 2.0)
+    segments = [half_side, corner, Straight(side_ew_m), corner, Straight(side_ns_m),
+                corner, Straight(side_ew_m), corner, half_side]
+    points_xy = turtle_loop_xy((0.0, 0.0, math.pi / 2.0), segments)
+    end_m = (side_ns_m / 2.0 + _LINE_END_CORNER_RADIUS_M * math.pi / 2.0
+             + _LINE_END_PAINTED_ALONG_NORTH_SIDE_M)
+    return Course(_centred(points_xy), name='line_end',
+                  painted_interval_m=(-_LINE_END_PAINTED_BEHIND_START_M, end_m))
+
+
 def distractor_beside(course, arc_length_m, offset_m, length_m, width_m, yaw_rad=0.0):
     """
     Place a distractor patch beside a course's line.
@@ -362,4 +505,8 @@ COURSES = {
     'dashed': dashed,
     'figure_eight': figure_eight,
     'distractor': distractor,
+    'hairpins': hairpins,
+    'sharp_corners': sharp_corners,
+    't_junction': t_junction,
+    'line_end': line_end,
 }

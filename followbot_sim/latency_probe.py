@@ -23,7 +23,7 @@ from followbot import frames as frame_names
 from followbot import messages
 from followbot.image_conversion import array_to_image
 from followbot.node_runner import NodeExecutor, StopSignals
-from followbot.transport import keep_large_buffers
+from followbot.transport import keep_large_buffers, use_package_profile
 from geometry_msgs.msg import TwistStamped
 import numpy as np
 import rclpy
@@ -156,6 +156,9 @@ def main(argv=None) -> int:
     """
     options = parse_arguments(argv)
     keep_large_buffers()
+    # It stands in for the simulator's camera, so it chooses its Fast DDS configuration as
+    # the simulator does (before rclpy makes the participant).
+    use_package_profile()
     frames_bgr = np.load(options.frames_file, mmap_mode='r')
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     stop = StopSignals().install()

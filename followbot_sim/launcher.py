@@ -24,11 +24,15 @@ from followbot.image_conversion import image_to_array, to_bgr
 from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_namespace,
                                    ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
                                    StopSignals)
+from followbot.package_files import share_file
 from followbot.recording import RecordingError
 from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim.course_library import COURSES
+from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
 from followbot_sim.run_recording import add_record_options, RunRecording
-from followbot_sim.score import score_values, SIMULATOR_NODE
+from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
+from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS
+from followbot_sim.video import add_video_node, check_video_path, VideoPathError
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -91,18 +95,82 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='add bright and dim zones of light along the line')
     parser.add_argument('--report-period', type=float, default=10.0, metavar='SECONDS',
                         help='simulated seconds between progress lines (default: 10)')
+    parser.add_argument('--robots', type=int, default=None, metavar='N',
+                        help=f'race N robots (1..{MAX_ROBOTS}, named r1..rN) on one course in '
+                             'one simulator, each with its own follower process under its '
+                             'namespace (default: one per --configs entry, else 1)')
+    parser.add_argument('--configs', default=None, metavar='NAME,...',
+                        help="the followers' configurations, one per robot in order (or one "
+                             'for all): ' + ', '.join(BUILTIN_CONFIGURATIONS) + ' or the path '
+                             "of a ROS parameters file (default: the follower's own "
+                             'parameters)')
     parser.add_argument('--pictures-dir', type=Path, default=None, metavar='DIR',
                         help=f"save {CAMERA_PICTURE} (camera view with the follower's "
                              f'overlay) and {OVERVIEW_PICTURE} (course from above with the '
                              'path driven) here while running')
+    parser.add_argument('--video', type=_video_path, default=None, metavar='FILE',
+                        help="write a video (.mp4 or .avi) of the follower's view with its "
+                             'overlay beside the course from above with the path driven, in '
+                             'simulated time: it plays at real speed however fast the run')
+    parser.add_argument('--video-period-s', type=float, default=None, metavar='SECONDS',
+                        help='simulated seconds between video frames (default: one frame per '
+                             'camera frame)')
     add_record_options(parser)
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments
+    if options.video_period_s is not None and not options.video_period_s > 0:
+        parser.error('--video-period-s must be > 0')
     if options.duration < 0 or options.real_time_factor < 0 or options.report_period <= 0:
         parser.error('--duration and --real-time-factor must be >= 0, --report-period > 0')
     if options.domain_id is not None and not 0 <= options.domain_id <= 232:
         parser.error('--domain-id must be in 0..232')
+    try:
+        options.configs = follower_configurations(options.configs)
+    except ValueError as error:
+        parser.error(str(error))
+    if options.robots is None:
+        options.robots = max(1, len(options.configs))
+    if not 1 <= options.robots <= MAX_ROBOTS:
+        parser.error(f'--robots must be in 1..{MAX_ROBOTS}')
+    if len(options.configs) == 1:
+        options.configs = options.configs * options.robots
+    elif options.configs and len(options.configs) != options.robots:
+        parser.error(f'--configs names {len(options.configs)} configurations for '
+                     f'{options.robots} robots: give one per robot, or one for all')
+    if options.record and options.robots > 1:
+        parser.error('--record records one robot: run several robots without it, or record '
+                     'each in a launcher of its own under its namespace (-r __ns:=/robot1)')
     return options
+
+
+def _video_path(text: str) -> Path:
+    try:
+        return check_video_path(text)
+    except VideoPathError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def follower_configurations(text: str | None) -> list:
+    """
+    Read ``--configs``: built-in configuration names or parameters files, comma-separated.
+
+    :param text: the option's value; None for none.
+    :return: (name, parameters file path) per entry, in order; empty for None.
+    :raises ValueError: for an entry that is neither a built-in name nor an existing file.
+    """
+    if text is None:
+        return []
+    configurations = []
+    for entry in text.split(','):
+        entry = entry.strip()
+        if entry in BUILTIN_CONFIGURATIONS:
+            configurations.append((entry, share_file('config', BUILTIN_CONFIGURATIONS[entry])))
+        elif Path(entry).is_file():
+            configurations.append((Path(entry).stem, Path(entry).resolve()))
+        else:
+            raise ValueError(f'--configs: {entry!r} is neither a built-in configuration ('
+                             + ', '.join(BUILTIN_CONFIGURATIONS) + ') nor a parameters file')
+    return configurations
 
 
 class ChildProcess:
@@ -150,46 +218,55 @@ class MonitorNode(Node):
     """Print the simulator's ground-truth progress and save pictures."""
 
     def __init__(self, report_period_s: float, pictures_dir: Path | None, simulator: str,
-                 **kwargs):
+                 robots: dict | None = None, **kwargs):
         """
         Subscribe to the score and, when pictures are wanted, to the two images.
 
         :param report_period_s: simulated seconds between progress lines.
         :param pictures_dir: folder for the pictures, or None for none.
-        :param simulator: the fully qualified name of the simulator whose score is reported
+        :param simulator: the fully qualified name of the simulator whose scores are reported
             (other robots' simulators may score on /diagnostics too).
+        :param robots: robot name -> the label of its lines (such as ``r1 (book)``), for a
+            simulator of several robots; None for its single, unnamed robot. The camera
+            picture is the first robot's.
         :param kwargs: forwarded to :class:`rclpy.node.Node`.
         """
         super().__init__('followbot_monitor', **kwargs)
-        self._simulator = simulator
+        robots = robots or {SINGLE_ROBOT: ''}
+        # Scored name -> line label: each robot is scored under its own namespace.
+        self._labels = {robot_simulator_name(simulator, name): label
+                        for name, label in robots.items()}
         self._report_period_s = report_period_s
-        self._next_report_s = 0.0
-        self._laps_reported = 0
-        self.summary = {}
+        self._next_report_s = dict.fromkeys(self._labels, 0.0)
+        self._laps_reported = dict.fromkeys(self._labels, 0)
+        self.summaries = {}
         self._pictures_dir = pictures_dir
         self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback, 10)
         if pictures_dir is not None:
             pictures_dir.mkdir(parents=True, exist_ok=True)
             image_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-            self.create_subscription(Image, DEBUG_IMAGE_TOPIC, self.debug_image_callback,
-                                     image_qos)
+            self.create_subscription(Image, robot_prefix(next(iter(robots))) + DEBUG_IMAGE_TOPIC,
+                                     self.debug_image_callback, image_qos)
             self.create_subscription(Image, OVERVIEW_IMAGE_TOPIC,
                                      self.overview_image_callback, image_qos)
             self._last_camera_save_s = -1.0
 
     def diagnostics_callback(self, msg: DiagnosticArray) -> None:
-        """Keep the latest score and print a progress line when one is due."""
-        summary = score_values(msg, self._simulator)
-        if summary is None:
-            return
-        self.summary = summary
-        time_s = float(summary['time_s'])
-        laps = int(summary['laps_completed'])
-        # Score stamps are multiples of the period up to float rounding: allow for it.
-        if laps > self._laps_reported or time_s + REPORT_TOLERANCE_S >= self._next_report_s:
-            self._laps_reported = laps
-            self._next_report_s = time_s + self._report_period_s
-            print('[followbot] ' + format_progress(summary), flush=True)
+        """Keep each robot's latest score and print a progress line when one is due."""
+        for scored_name, label in self._labels.items():
+            summary = score_values(msg, scored_name)
+            if summary is None:
+                continue
+            self.summaries[label] = summary
+            time_s = float(summary['time_s'])
+            laps = int(summary['laps_completed'])
+            # Score stamps are multiples of the period up to float rounding: allow for it.
+            if (laps > self._laps_reported[scored_name]
+                    or time_s + REPORT_TOLERANCE_S >= self._next_report_s[scored_name]):
+                self._laps_reported[scored_name] = laps
+                self._next_report_s[scored_name] = time_s + self._report_period_s
+                print(f'[followbot] {label}{": " if label else ""}'
+                      + format_progress(summary), flush=True)
 
     def debug_image_callback(self, msg: Image) -> None:
         """Save the follower's view about once a second of simulated time."""
@@ -239,6 +316,28 @@ def _node_command(module: str, ros_arguments: list, parameters: dict) -> list:
         if value is not None:
             command += ['-p', f'{name}:={value}']
     return command
+
+
+def follower_arguments(namespace: str, robot: str, config: Path | None,
+                       node_arguments: list) -> list:
+    """
+    Return the ROS arguments of one robot's follower: its namespace and configuration first.
+
+    rcl takes the first namespace remap that matches, so the robot's namespace goes before the
+    user's; the configuration's parameters go before the user's, which then win over it.
+
+    :param namespace: the launcher's namespace ('/' for none).
+    :param robot: the robot's name; empty for the single robot.
+    :param config: the configuration's parameters file, or None for the follower's defaults.
+    :param node_arguments: the ROS arguments every node gets.
+    :return: the follower's ROS arguments.
+    """
+    own = []
+    if robot:
+        own += ['-r', f"__ns:={namespace.rstrip('/')}/{robot}"]
+    if config is not None:
+        own += ['--params-file', str(config)]
+    return ([ROS_ARGS_FLAG, *own, ROS_ARGS_END] if own else []) + list(node_arguments)
 
 
 def _clock_taken(monitor: Node, executor, clock_topic: str) -> bool:
@@ -300,10 +399,17 @@ def main(argv=None) -> int:
     node_arguments = list(options.ros_arguments)
     if clock_topic != CLOCK_TOPIC:
         node_arguments += [ROS_ARGS_FLAG, '-r', f'{CLOCK_TOPIC}:={clock_topic}', ROS_ARGS_END]
+    names = robot_names(options.robots)
+    # Each robot's line says which configuration drives it.
+    labels = {name: f'{name} ({config_name})' if options.configs else name
+              for name, (config_name, _) in zip(
+                  names, options.configs or [(None, None)] * len(names))}
     monitor = MonitorNode(options.report_period, options.pictures_dir, simulator_name,
-                          context=context)
+                          robots=labels if names != (SINGLE_ROBOT,) else None, context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(monitor)
+    if options.video is not None:
+        add_video_node(executor, options.video, simulator_name, options.video_period_s)
     length = (f'{options.duration:g} s of simulated time' if options.duration
               else 'until Ctrl-C')
     pace = (f'real-time factor {options.real_time_factor:g}' if options.real_time_factor
@@ -312,7 +418,9 @@ def main(argv=None) -> int:
         pace += ', in lockstep'
     # Without --course the simulator's parameter (or a --params-file) decides; it says which.
     course = f'course {options.course}; ' if options.course else ''
-    print(f'[followbot] ROS_DOMAIN_ID={domain_id}; {course}running {length}, {pace}; '
+    race = ('' if names == (SINGLE_ROBOT,) else
+            f"{len(names)} robots ({', '.join(labels.values())}); ")
+    print(f'[followbot] ROS_DOMAIN_ID={domain_id}; {course}{race}running {length}, {pace}; '
           f'Fast DDS {profile}.', flush=True)
     # Options left out (None) leave the node's own value, or the --params-file's, in force.
     simulator_parameters = {
@@ -322,6 +430,8 @@ def main(argv=None) -> int:
         'lockstep': _ros_boolean(options.lockstep),
         'run_duration_s': float(options.duration),
         'score_period_s': 1.0,
+        # The single robot is left to the simulator's own default (or a --params-file).
+        'robots': None if names == (SINGLE_ROBOT,) else '[' + ','.join(names) + ']',
     }
     # A simulator already running under the same namespace on this domain would share this
     # one's clock: ask the graph (discovery takes a moment) before starting anything.
@@ -329,7 +439,8 @@ def main(argv=None) -> int:
         print(f'[followbot] Cannot run: another simulator already publishes {clock_topic} on '
               f'ROS_DOMAIN_ID={domain_id}, and two simulated clocks would mix: run this one '
               'under its own namespace (--ros-args -r __ns:=/robot2) or on another domain '
-              '(--domain-id N).', file=sys.stderr, flush=True)
+              '(--domain-id N), or race several robots in one simulator (--robots N '
+              '--configs A,B).', file=sys.stderr, flush=True)
         executor.shutdown()
         monitor.destroy_node()
         rclpy.try_shutdown(context=context)
@@ -349,9 +460,11 @@ def main(argv=None) -> int:
         simulator_parameters['start_paused'] = 'true'
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
-    follower = ChildProcess('follower', _node_command(
-        'followbot.follower_node', node_arguments, {'use_sim_time': 'true'}), environment)
-    children = (simulator, follower)
+    followers = [ChildProcess('follower' + (f' {name}' if name else ''), _node_command(
+        'followbot.follower_node', follower_arguments(namespace, name, config, node_arguments),
+        {'use_sim_time': 'true'}), environment)
+        for name, (_, config) in zip(names, options.configs or [(None, None)] * len(names))]
+    children = (simulator, *followers)
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
@@ -365,7 +478,7 @@ def main(argv=None) -> int:
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
-        exit_codes = {child.name: child.stop() for child in (follower, simulator)}
+        exit_codes = {child.name: child.stop() for child in (*followers, simulator)}
         if recording is not None:
             recording.drain(executor)
         # Let the last score and pictures arrive, then leave.
@@ -377,8 +490,9 @@ def main(argv=None) -> int:
             print(f'[followbot] recorded {recording.close()}', flush=True)
         monitor.destroy_node()
         rclpy.try_shutdown(context=context)
-    if monitor.summary:
-        print('[followbot] final: ' + format_progress(monitor.summary), flush=True)
+    for label, summary in monitor.summaries.items():
+        print(f'[followbot] final{" " if label else ""}{label}: ' + format_progress(summary),
+              flush=True)
     failed = {name: code for name, code in exit_codes.items() if code != 0}
     if failed:
         print(f'[followbot] failed: {failed} (exit codes)', flush=True)

@@ -22,6 +22,7 @@ import cv2
 from followbot.ground_projection import CameraGeometry
 from followbot.line_detector import DetectorConfig, LineDetector, MIN_WIDTH_RATIO
 from followbot_sim.perception_score import band_truth, group_lines, PerceptionTally
+import numpy as np
 import yaml
 
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
@@ -29,6 +30,15 @@ LABELS_DIR = PACKAGE_DIR / 'test' / 'data' / 'real_frames'
 FRAMES_VARIABLE = 'FOLLOWBOT_REAL_FRAMES'
 DEFAULT_FRAMES_DIR = PACKAGE_DIR.parent / 'shared' / 'real-frames'
 LABELLED_COLOURS = ('yellow', 'white', 'black')
+# The schematic of a frame: what the labels say and what the detector did, drawn on a plain
+# canvas, so a picture of a hard frame holds none of the third-party frame's pixels.
+SCHEMATIC_CANVAS_BGR = (90, 90, 90)
+SCHEMATIC_LINE_BGR = {'yellow': (0, 215, 255), 'white': (235, 235, 235), 'black': (25, 25, 25)}
+SCHEMATIC_HORIZON_BGR = (160, 160, 160)
+SCHEMATIC_BAND_BGR = (140, 140, 140)
+SCHEMATIC_VERDICT_BGR = {'right': (0, 200, 0), 'false': (0, 0, 255), 'missed': (255, 0, 255)}
+SCHEMATIC_MARK_RADIUS_PX = 7
+SCHEMATIC_TEXT_BGR = (255, 255, 255)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,3 +201,38 @@ def score_source(source: LabelledSource, frames_dir: Path, colour: str, frames=N
         verdicts = tally.add_frame(line_truths, detection)
         results.append(FrameResult(frame, colour, verdicts, detection))
     return tally, results
+
+
+def draw_schematic(result: FrameResult):
+    """
+    Draw a frame's labels and the detector's verdicts, without the frame's pixels.
+
+    The labelled lines of every colour are drawn at their labelled width, the horizon as a grey
+    line, each band's rows as a thin outline, and each band's stripe (or, when missed, the
+    band's centre) as a circle: green right, red false, magenta missed.
+
+    :param result: the FrameResult of :func:`score_source`.
+    :return: the BGR picture, of the frame's size.
+    """
+    width_px, height_px = result.frame.size
+    picture = np.full((height_px, width_px, 3), SCHEMATIC_CANVAS_BGR, np.uint8)
+    if math.isfinite(result.frame.horizon_y_px) and 0 <= result.frame.horizon_y_px < height_px:
+        row = round(result.frame.horizon_y_px)
+        cv2.line(picture, (0, row), (width_px - 1, row), SCHEMATIC_HORIZON_BGR, 1)
+    for colour, polylines in result.frame.lines.items():
+        for polyline in polylines:
+            for (x0, y0, w0), (x1, y1, w1) in zip(polyline, polyline[1:]):
+                cv2.line(picture, (round(x0), round(y0)), (round(x1), round(y1)),
+                         SCHEMATIC_LINE_BGR.get(colour, SCHEMATIC_TEXT_BGR),
+                         max(1, round((w0 + w1) / 2)), cv2.LINE_AA)
+    for band, verdict in zip(result.detection.bands, result.verdicts):
+        cv2.rectangle(picture, (0, band.top_px), (width_px - 1, band.bottom_px - 1),
+                      SCHEMATIC_BAND_BGR, 1)
+        x_px = band.centroid_x_px if band.found else width_px / 2.0
+        y_px = (band.top_px + band.bottom_px - 1) / 2.0
+        cv2.circle(picture, (round(x_px), round(y_px)), SCHEMATIC_MARK_RADIUS_PX,
+                   SCHEMATIC_VERDICT_BGR[verdict], 2 if band.found else 1, cv2.LINE_AA)
+    cv2.putText(picture, f'{result.frame.name} ({result.colour}) confidence '
+                f'{result.detection.confidence:.2f}', (10, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
+                SCHEMATIC_TEXT_BGR, 1, cv2.LINE_AA)
+    return picture

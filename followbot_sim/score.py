@@ -17,6 +17,24 @@ def score_status_name(simulator: str) -> str:
     return simulator + SCORE_STATUS_SUFFIX
 
 
+def robot_simulator_name(simulator: str, robot: str) -> str:
+    """
+    Return the name a simulator's robot is scored under: the simulator's, in its namespace.
+
+    A robot named r1 in the simulator /followbot_sim is scored as /r1/followbot_sim: the name
+    a single robot gets from a simulator started under ``-r __ns:=/r1``, so a monitor looks
+    for the same name however the robots were started.
+
+    :param simulator: the simulator node's fully qualified name, such as /followbot_sim.
+    :param robot: the robot's name; empty for a simulator's single, unnamed robot.
+    :return: the scored name, such as /r1/followbot_sim (the simulator's own for no name).
+    """
+    if not robot:
+        return simulator
+    namespace, _, node_name = simulator.rpartition('/')
+    return f'{namespace}/{robot}/{node_name}'
+
+
 def score_values(diagnostics, simulator: str | None = None) -> dict | None:
     """
     Return a simulator's score in a ``diagnostic_msgs/DiagnosticArray``, if it holds it.

@@ -37,6 +37,7 @@ from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
+from followbot_sim.plots import write_plots
 from followbot_sim.run_recording import add_record_options, RunRecording
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS, SimulatorNode
 import rclpy
@@ -80,8 +81,12 @@ LIGHT_NOISE_SEED = 1
 SCORECARD_SIM_PARAMETERS = ('course', 'lighting_zones', 'camera_noise_stddev_levels',
                             'random_seed', 'real_time_factor', 'lockstep', 'start_paused',
                             'run_duration_s')
+# The scorecard scores one robot per run, its follower on the single robot's topics.
+MULTI_ROBOT_SIM_PARAMETERS = ('robots', 'robot_spacing_m')
 # ROS log levels for the nodes: quiet by default, as several runs share one terminal.
 NODE_LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
+# Simulated seconds between the samples of a run's distance from the line and speed (plots).
+SAMPLE_PERIOD_S = 0.1
 # How a --sim-param error names the type a simulator parameter takes.
 TYPE_NAMES = {bool: 'a boolean (true or false)', int: 'an integer',
               float: 'a floating-point number', str: 'a string'}
@@ -89,6 +94,14 @@ TYPE_NAMES = {bool: 'a boolean (true or false)', int: 'an integer',
 END_LAP = 'lap completed'
 END_TIME_LIMIT = 'time limit'
 END_STUCK = 'stuck'
+END_LINE_END = 'stopped at line end'
+# A run on a line that ends has ended well when it stood still on the paint no farther than
+# this before the end: the nearest band sees the floor ~0.35 m ahead of the robot's centre, so
+# a follower that stops when the end leaves its view stands about that far before it.
+STOPPED_BEFORE_LINE_END_WITHIN_M = 0.6
+# Standing still: slower than a millimetre a frame either way.
+STANDING_STILL_MPS = 0.02
+STANDING_STILL_RADPS = 0.02
 END_ERROR = 'error'
 END_INTERRUPTED = 'interrupted'
 # Shown in the table for a figure a run does not have (no lap, no ratio, an error).
@@ -232,8 +245,13 @@ def parse_sim_parameter(text: str) -> tuple:
     if name in SCORECARD_SIM_PARAMETERS:
         raise ValueError(f'Simulator parameter {name!r} is set by the scorecard for every run '
                          '(scenario or pacing); choose a scenario instead.')
+    if name in MULTI_ROBOT_SIM_PARAMETERS:
+        raise ValueError(f'Simulator parameter {name!r} is not for the scorecard, which scores '
+                         'one robot per run: race configurations on one course with '
+                         '`followbot --robots N --configs A,B` instead.')
     if name not in SIMULATOR_PARAMETERS:
-        settable = sorted(set(SIMULATOR_PARAMETERS) - set(SCORECARD_SIM_PARAMETERS))
+        settable = sorted(set(SIMULATOR_PARAMETERS) - set(SCORECARD_SIM_PARAMETERS)
+                          - set(MULTI_ROBOT_SIM_PARAMETERS))
         raise ValueError(f'Unknown simulator parameter {name!r}: give one of '
                          f'{", ".join(settable)}.')
     spec = SIMULATOR_PARAMETERS[name]
@@ -295,6 +313,42 @@ class StuckDetector:
             self._samples.popleft()
         reference_s, reference_m = self._samples[0]
         return reference_s <= window_start_s and progress_m - reference_m < self._min_progress_m
+
+
+class RunSamples:
+    """The run's progress, distance from the line and speed, every SAMPLE_PERIOD_S."""
+
+    def __init__(self, period_s: float = SAMPLE_PERIOD_S):
+        """
+        Start with no sample.
+
+        :param period_s: simulated seconds between samples.
+        """
+        self._period_s = period_s
+        self._next_s = 0.0
+        self._columns = {'time_s': [], 'progress_m': [], 'distance_from_line_m': [],
+                         'speed_mps': []}
+
+    def take(self, world, tracker) -> None:
+        """
+        Take a sample if one is due by the world's time.
+
+        :param world: the simulated world (its time and the robot's true speed).
+        :param tracker: its LapTracker (progress along the line, distance from it).
+        """
+        if world.time_s + 1e-9 < self._next_s:
+            return
+        self._next_s = world.time_s + self._period_s
+        speed_mps, _ = world.robot_twist()
+        for name, value in (('time_s', world.time_s), ('progress_m', tracker.progress_m),
+                            ('distance_from_line_m', tracker.distance_from_line_m),
+                            ('speed_mps', speed_mps)):
+            # A millimetre, a millisecond: the JSON stays small.
+            self._columns[name].append(round(float(value), 3))
+
+    def as_dict(self) -> dict:
+        """Return the samples as columns: time_s, progress_m, distance_from_line_m, speed_mps."""
+        return {name: list(values) for name, values in self._columns.items()}
 
 
 def run_metrics(summary: dict, line_statistics: dict) -> dict:
@@ -484,6 +538,24 @@ def _wait_until_connected(executor, simulator, follower, stop_requested,
         executor.spin_once(timeout_sec=CONNECT_POLL_S)
 
 
+def stopped_at_line_end(world, tracker) -> bool:
+    """
+    Tell whether the robot stands still on a line that ends, just before its end.
+
+    :param world: the simulator's World.
+    :param tracker: its LapTracker, progress counted from the start of the course.
+    :return: True on a course whose paint ends, with the robot at rest no farther than
+        ``STOPPED_BEFORE_LINE_END_WITHIN_M`` before the end of the paint (and not beyond it).
+    """
+    painted_interval_m = world.course.painted_interval_m
+    if painted_interval_m is None:
+        return False
+    before_end_m = painted_interval_m[1] - tracker.progress_m
+    linear_mps, angular_radps = world.robot_twist()
+    return (0.0 <= before_end_m <= STOPPED_BEFORE_LINE_END_WITHIN_M
+            and abs(linear_mps) < STANDING_STILL_MPS and abs(angular_radps) < STANDING_STILL_RADPS)
+
+
 def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
                  time_limit_s: float | None = None,
                  stuck_after_s: float = DEFAULT_STUCK_AFTER_S,
@@ -533,18 +605,20 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
         world, tracker = simulator.world, simulator.lap_tracker
         time_limit_s = time_limit_s or default_time_limit_s(world.course.length_m)
         stuck = StuckDetector(stuck_after_s)
+        samples = RunSamples()
         start_s = time.monotonic()
         while True:
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
             if recording is not None and recording.holding != recording.should_hold():
                 # Time stands still (the simulator is not spun) while the recorder catches up.
                 (executor.remove_node if recording.holding else executor.add_node)(simulator)
+            samples.take(world, tracker)
             if tracker.laps_completed >= 1:
                 end_reason = END_LAP
             elif world.time_s >= time_limit_s:
                 end_reason = END_TIME_LIMIT
             elif stuck.update(world.time_s, tracker.progress_m):
-                end_reason = END_STUCK
+                end_reason = END_LINE_END if stopped_at_line_end(world, tracker) else END_STUCK
             elif stop_requested.is_set():
                 end_reason = END_INTERRUPTED
             else:
@@ -569,6 +643,7 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
             'line_statistics': line_statistics,
             'wall_s': wall_s,
             'simulated_per_wall': summary['time_s'] / wall_s if wall_s > 0.0 else None,
+            'samples': samples.as_dict(),
             'camera': {'width_px': width_px, 'height_px': height_px,
                        'rate_hz': simulator.get_parameter('camera_rate_hz').value,
                        'noise_stddev_levels': world.camera_noise_stddev},
@@ -688,6 +763,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     output.add_argument('--json', type=Path, default=Path('scorecard.json'), metavar='PATH',
                         help='where to write the results as JSON (default: scorecard.json)')
     output.add_argument('--no-json', action='store_true', help='write no JSON file')
+    parser.add_argument('--plots', type=Path, default=None, metavar='DIR',
+                        help='also draw PNG plots here: lap times, and for each scenario the '
+                             'distance from the line and the speed along the course')
     parser.add_argument('--node-log-level', choices=NODE_LOG_LEVELS, default='error',
                         help="the nodes' ROS log level (default: error)")
     add_record_options(parser, one_file_per_run=True)
@@ -700,6 +778,13 @@ def parse_arguments(argv=None) -> argparse.Namespace:
         options.sim_parameters = [parse_sim_parameter(text) for text in options.sim_param]
     except (ValueError, FileNotFoundError) as error:
         parser.error(str(error))
+    if options.plots is not None:
+        # Before the runs, not after minutes of them.
+        try:
+            options.plots.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            parser.error(f'--plots: cannot make folder {options.plots}: '
+                         f'{error.strerror or error}.')
     runs = len(options.scenarios) * len(options.configurations)
     options.workers = min(options.jobs, runs)
     if options.domain_id is None:
@@ -846,6 +931,10 @@ def main(argv=None) -> int:
         document = {'metadata': _metadata(options, argv, wall_s), 'runs': records}
         options.json.write_text(json.dumps(document, indent=2) + '\n', encoding='utf-8')
         print(f'[{PROGRAM}] results in {options.json}', file=sys.stderr, flush=True)
+    if options.plots is not None:
+        paths = write_plots(records, options.plots)
+        print(f'[{PROGRAM}] {_count(len(paths), "plot")} in {options.plots}/', file=sys.stderr,
+              flush=True)
     return 1 if any(record['end_reason'] == END_ERROR for record in records) else 0
 
 

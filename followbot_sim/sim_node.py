@@ -30,7 +30,9 @@ from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits, KOBUKI_C
                                       KOBUKI_MAX_ANGULAR_SPEED_RADPS, KOBUKI_MAX_LINEAR_SPEED_MPS,
                                       TIME_EPSILON_S)
 from followbot_sim.odometry import WheelOdometry
-from followbot_sim.score import score_status_name, SIMULATOR_NODE
+from followbot_sim.robots import (DEFAULT_ROBOT_SPACING_M, MAX_ROBOTS, MIN_ROBOT_SPACING_M,
+                                  robot_names, robot_prefix)
+from followbot_sim.score import robot_simulator_name, score_status_name, SIMULATOR_NODE
 from followbot_sim.trail import Trail
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
                                  FollowbotWorld, LEFT_WHEEL_JOINT, RenderingUnavailableError,
@@ -60,6 +62,15 @@ IMAGE_ENCODINGS = tuple(encoding for encoding in SUPPORTED_ENCODINGS
                         if dtype_of(encoding) == BYTE_DTYPE)
 COMPRESSED_SUFFIX = '/compressed'
 SIMULATOR_PARAMETERS = {
+    'robots': ParameterSpec(
+        1, f'Robots in the world: a count (1..{MAX_ROBOTS}; 1 is the single robot with plain '
+        'topic and frame names, N > 1 names them r1..rN) or a list of names such as [r1,r2]. '
+        "A named robot's topics and /tf frames are prefixed with its name (r1/cmd_vel, "
+        'r1/base_footprint); /clock, /diagnostics, overview/image and the services are shared.',
+        read_only=True, dynamic_typing=True),
+    'robot_spacing_m': ParameterSpec(
+        DEFAULT_ROBOT_SPACING_M, 'Robots start one behind the other along the line, this far '
+        'apart (centre to centre).', MIN_ROBOT_SPACING_M, 10.0, read_only=True),
     'course': ParameterSpec(
         'book_loop', 'Course to load: a built-in name (see the README) or the path of a YAML '
         'course file.', read_only=True),
@@ -162,6 +173,9 @@ WHEEL_JOINTS = (LEFT_WHEEL_JOINT, RIGHT_WHEEL_JOINT)
 FINAL_DELIVERY_TIMEOUT_S = 3.0
 # Static transforms are latched: late subscribers (RViz, tf2 listeners) still get them.
 TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# The overview draws each robot's trail in its own colour (BGR): red, blue, green, magenta...
+TRAIL_COLOURS_BGR = ((0, 0, 255), (255, 0, 0), (0, 160, 0), (255, 0, 255), (0, 140, 255),
+                     (255, 255, 0), (0, 0, 128), (128, 0, 128))
 
 
 def _reached(time_s: float, target_s: float) -> bool:
@@ -174,6 +188,34 @@ def _steps_to(time_s: float, event_s: float, timestep_s: float) -> int:
     # Events lie on the step grid up to float drift: the tolerance keeps k steps from becoming
     # k + 1 when k * timestep_s sums to a hair above the event.
     return max(1, math.ceil((event_s - time_s) / timestep_s - 1e-6))
+
+
+class _Robot:
+    """One simulated robot's command, scoring and odometry state, its topics and messages."""
+
+    def __init__(self, index: int, name: str, command_timeout_s: float, course,
+                 limits: DiffDriveLimits):
+        self.index = index
+        self.name = name
+        # Topics are relative to the node's namespace; frames are global names on /tf.
+        self.prefix = robot_prefix(name)
+        self.watchdog = CommandWatchdog(command_timeout_s)
+        self.lap_tracker = LapTracker(course)
+        self.odometry = WheelOdometry(limits.wheel_radius_m, limits.wheel_separation_m)
+        self.trail = Trail()
+        self.laps_reported = 0
+        self.commands_received = 0
+        self.awaiting_command = False
+        self.image_publisher = self.compressed_publisher = self.camera_info_publisher = None
+        self.depth_publisher = self.depth_info_publisher = self.points_publisher = None
+
+    def frame(self, frame_id: str) -> str:
+        """Return the robot's own name of one of its frames (``r1/odom``, or ``odom``)."""
+        return self.prefix + frame_id
+
+    def log_prefix(self) -> str:
+        """Return what starts the robot's log lines: nothing for the single robot."""
+        return f'{self.name}: ' if self.name else ''
 
 
 @dataclasses.dataclass
@@ -219,6 +261,7 @@ class SimulatorNode(Node):
             raise ValueError(f'image_encoding must be one of {", ".join(IMAGE_ENCODINGS)}, '
                              f'got {self._image_encoding!r}.')
         camera_rate_hz = parameters['camera_rate_hz']
+        names = robot_names(parameters['robots'])
 
         course = load_course(parameters['course'], lighting=parameters['lighting_zones'])
         limits = DiffDriveLimits(
@@ -228,19 +271,16 @@ class SimulatorNode(Node):
             course, parameters['image_width_px'], parameters['image_height_px'],
             parameters['horizontal_fov_deg'], parameters['camera_pitch_deg'], limits=limits,
             camera_noise_stddev=parameters['camera_noise_stddev_levels'],
-            noise_seed=parameters['random_seed'])
-        self._watchdog = CommandWatchdog(parameters['command_timeout_s'])
-        self._lap_tracker = LapTracker(course)
-        self._odometry = WheelOdometry(limits.wheel_radius_m, limits.wheel_separation_m)
-        self._odometry.update(*self._world.wheel_angles(), self._world.time_s)
-        self._trail = Trail()
-        self._laps_reported = 0
-        self._commands_received = 0
+            noise_seed=parameters['random_seed'], robot_names=names,
+            robot_spacing_m=parameters['robot_spacing_m'])
+        self._robots = [_Robot(index, name, parameters['command_timeout_s'], course, limits)
+                        for index, name in enumerate(names)]
+        for robot in self._robots:
+            robot.odometry.update(*self._world.wheel_angles(robot.index), self._world.time_s)
         self._last_score_stamp = None
         self._finished = False
         self._paused = parameters['start_paused']
         self._lockstep = parameters['lockstep']
-        self._awaiting_command = False
         self._lockstep_timeouts = 0
         self._holding_for_partner = False
         # Render once now: a machine that cannot render says so at start-up, and the GL
@@ -249,7 +289,9 @@ class SimulatorNode(Node):
         self._open_viewer(parameters['viewer'])
 
         self._make_publishers(parameters)
-        self._make_cmd_vel_subscription(parameters['cmd_vel_stamped'])
+        self._cmd_vel_stamped = parameters['cmd_vel_stamped']
+        for robot in self._robots:
+            self._make_cmd_vel_subscription(robot)
         self._pause_service = self.create_service(SetBool, '~/pause', self.pause_callback)
         self._step_service = self.create_service(Trigger, '~/step', self.step_callback)
         self._reset_service = self.create_service(Trigger, '~/reset', self.reset_callback)
@@ -294,8 +336,10 @@ class SimulatorNode(Node):
                 else 'as fast as possible')
         if self._lockstep:
             pace += ', in lockstep with the follower'
+        robots = ('' if len(names) == 1 and not names[0] else
+                  f"{len(names)} robots ({', '.join(names)}), each ")
         self.get_logger().info(
-            f"Simulating course '{course.name}' ({course.length_m:.1f} m) with a "
+            f"Simulating course '{course.name}' ({course.length_m:.1f} m) with {robots}a "
             f'{width_px}x{height_px} camera at {camera_rate_hz:g} Hz, {pace}'
             f"{', paused' if self._paused else ''}.")
 
@@ -309,44 +353,11 @@ class SimulatorNode(Node):
 
     def _make_publishers(self, parameters: dict) -> None:
         # REP-2003: sensor publishers are reliable; subscribers pick best effort if they like.
-        intrinsics = self._world.camera_intrinsics()
-        size_px = self._world.image_size_px
-        self._image_publisher = self._camera_info_publisher = None
-        self._depth_publisher = self._depth_info_publisher = self._points_publisher = None
-        self._compressed_publisher = None
-        if parameters['rgb_enabled']:
-            self._image_publisher = self.create_publisher(Image, 'camera/rgb/image_raw', 10)
-            self._compressed_publisher = self.create_publisher(
-                CompressedImage, self._image_publisher.topic_name + COMPRESSED_SUFFIX, 10)
-            self._compressed_msg = CompressedImage(header=Header(
-                frame_id=frames.CAMERA_RGB_OPTICAL_FRAME))
-            self._camera_info_publisher = self.create_publisher(
-                CameraInfo, 'camera/rgb/camera_info', 10)
-        if parameters['depth_enabled']:
-            self._depth_publisher = self.create_publisher(Image, 'camera/depth/image_raw', 10)
-            self._depth_info_publisher = self.create_publisher(
-                CameraInfo, 'camera/depth/camera_info', 10)
-        if parameters['point_cloud_enabled']:
-            self._points_publisher = self.create_publisher(
-                PointCloud2, 'camera/depth/points', 10)
-        self._image_msg = Image(header=Header(frame_id=frames.CAMERA_RGB_OPTICAL_FRAME))
-        self._depth_msg = Image(header=Header(frame_id=frames.CAMERA_DEPTH_OPTICAL_FRAME))
-        self._points_msg = PointCloud2(header=Header(frame_id=frames.CAMERA_DEPTH_OPTICAL_FRAME))
-        self._rgb_info_msg = messages.camera_info(
-            intrinsics, size_px, frames.CAMERA_RGB_OPTICAL_FRAME)
-        self._depth_info_msg = messages.camera_info(
-            intrinsics, size_px, frames.CAMERA_DEPTH_OPTICAL_FRAME)
-        width_px, height_px = size_px
+        for robot in self._robots:
+            self._make_robot_publishers(robot, parameters)
+        width_px, height_px = self._world.image_size_px
         self._points_xyz = np.empty((height_px, width_px, 3), np.float32)
-
         self._clock_publisher = self.create_publisher(ClockMsg, '/clock', QoSProfile(depth=10))
-        self._odom_publisher = self.create_publisher(Odometry, 'odom', 10)
-        self._ground_truth_publisher = self.create_publisher(Odometry, 'ground_truth/odom', 10)
-        self._joint_state_publisher = self.create_publisher(JointState, 'joint_states', 10)
-        self._odom_msg = Odometry(header=Header(frame_id=frames.ODOM_FRAME),
-                                  child_frame_id=frames.BASE_FOOTPRINT_FRAME)
-        self._ground_truth_msg = Odometry(header=Header(frame_id=frames.WORLD_FRAME),
-                                          child_frame_id=frames.BASE_FOOTPRINT_FRAME)
         self._diagnostics_publisher = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._overview_publisher = self.create_publisher(Image, 'overview/image', 1)
         self._tf_publisher = None
@@ -363,16 +374,57 @@ class SimulatorNode(Node):
         now = messages.stamp(self._world.time_s)
         self._tf_static_publisher.publish(TFMessage(transforms=[
             messages.transform_stamped(transform, now)
-            for transform in self._world.sensor_frames()]))
+            for robot in self._robots for transform in self._world.sensor_frames(robot.index)]))
 
-    def _make_cmd_vel_subscription(self, stamped: bool) -> None:
-        self._cmd_vel_stamped = stamped
-        if stamped:
-            self._cmd_vel_subscription = self.create_subscription(
-                TwistStamped, 'cmd_vel', self.cmd_vel_stamped_callback, 10)
+    def _make_robot_publishers(self, robot: _Robot, parameters: dict) -> None:
+        intrinsics = self._world.camera_intrinsics()
+        size_px = self._world.image_size_px
+        topic = robot.prefix
+        rgb_optical_frame = robot.frame(frames.CAMERA_RGB_OPTICAL_FRAME)
+        depth_optical_frame = robot.frame(frames.CAMERA_DEPTH_OPTICAL_FRAME)
+        if parameters['rgb_enabled']:
+            robot.image_publisher = self.create_publisher(
+                Image, topic + 'camera/rgb/image_raw', 10)
+            robot.compressed_publisher = self.create_publisher(
+                CompressedImage, robot.image_publisher.topic_name + COMPRESSED_SUFFIX, 10)
+            robot.compressed_msg = CompressedImage(header=Header(frame_id=rgb_optical_frame))
+            robot.camera_info_publisher = self.create_publisher(
+                CameraInfo, topic + 'camera/rgb/camera_info', 10)
+        if parameters['depth_enabled']:
+            robot.depth_publisher = self.create_publisher(
+                Image, topic + 'camera/depth/image_raw', 10)
+            robot.depth_info_publisher = self.create_publisher(
+                CameraInfo, topic + 'camera/depth/camera_info', 10)
+        if parameters['point_cloud_enabled']:
+            robot.points_publisher = self.create_publisher(
+                PointCloud2, topic + 'camera/depth/points', 10)
+        robot.image_msg = Image(header=Header(frame_id=rgb_optical_frame))
+        robot.depth_msg = Image(header=Header(frame_id=depth_optical_frame))
+        robot.points_msg = PointCloud2(header=Header(frame_id=depth_optical_frame))
+        robot.rgb_info_msg = messages.camera_info(intrinsics, size_px, rgb_optical_frame)
+        robot.depth_info_msg = messages.camera_info(intrinsics, size_px, depth_optical_frame)
+        robot.odom_publisher = self.create_publisher(Odometry, topic + 'odom', 10)
+        robot.ground_truth_publisher = self.create_publisher(
+            Odometry, topic + 'ground_truth/odom', 10)
+        robot.joint_state_publisher = self.create_publisher(
+            JointState, topic + 'joint_states', 10)
+        base_footprint = robot.frame(frames.BASE_FOOTPRINT_FRAME)
+        robot.odom_msg = Odometry(header=Header(frame_id=robot.frame(frames.ODOM_FRAME)),
+                                  child_frame_id=base_footprint)
+        robot.ground_truth_msg = Odometry(header=Header(frame_id=frames.WORLD_FRAME),
+                                          child_frame_id=base_footprint)
+        robot.joint_names = tuple(robot.frame(joint) for joint in WHEEL_JOINTS)
+        # Scored as a single robot under the namespace <name> would be: one name either way.
+        robot.score_name = robot_simulator_name(self.get_fully_qualified_name(), robot.name)
+
+    def _make_cmd_vel_subscription(self, robot: _Robot) -> None:
+        topic = robot.prefix + 'cmd_vel'
+        if self._cmd_vel_stamped:
+            robot.cmd_vel_subscription = self.create_subscription(
+                TwistStamped, topic, lambda msg: self._take_command(robot, msg.twist), 10)
         else:
-            self._cmd_vel_subscription = self.create_subscription(
-                Twist, 'cmd_vel', self.cmd_vel_callback, 10)
+            robot.cmd_vel_subscription = self.create_subscription(
+                Twist, topic, lambda msg: self._take_command(robot, msg), 10)
 
     @property
     def world(self) -> FollowbotWorld:
@@ -380,14 +432,28 @@ class SimulatorNode(Node):
         return self._world
 
     @property
+    def robot_names(self) -> tuple[str, ...]:
+        """Return the robots' names (``('',)`` for the single, unnamed robot)."""
+        return self._world.robot_names
+
+    @property
     def lap_tracker(self) -> LapTracker:
-        """Return the ground-truth score of the robot on the course."""
-        return self._lap_tracker
+        """Return the ground-truth score of the (first) robot on the course."""
+        return self._robots[0].lap_tracker
+
+    def lap_tracker_of(self, robot: int) -> LapTracker:
+        """
+        Return the ground-truth score of a robot on the course.
+
+        :param robot: the robot's index in :attr:`robot_names`.
+        :return: its lap tracker.
+        """
+        return self._robots[robot].lap_tracker
 
     @property
     def odometry(self) -> WheelOdometry:
-        """Return the wheel odometry the node publishes on ``odom``."""
-        return self._odometry
+        """Return the wheel odometry the node publishes on ``odom`` (the first robot's)."""
+        return self._robots[0].odometry
 
     @property
     def finished(self) -> bool:
@@ -396,8 +462,12 @@ class SimulatorNode(Node):
 
     @property
     def commands_received(self) -> int:
-        """Return how many valid velocity commands have arrived on cmd_vel."""
-        return self._commands_received
+        """Return how many valid velocity commands have arrived on cmd_vel (all robots')."""
+        return sum(robot.commands_received for robot in self._robots)
+
+    @property
+    def _awaiting_command(self) -> bool:
+        return any(robot.awaiting_command for robot in self._robots)
 
     @property
     def paused(self) -> bool:
@@ -409,38 +479,43 @@ class SimulatorNode(Node):
         """Return how many camera frames got no answering cmd_vel within the lockstep wait."""
         return self._lockstep_timeouts
 
-    def cmd_vel_callback(self, msg: Twist) -> None:
-        """Take a velocity command; a non-finite one is refused and the robot keeps its last."""
+    def _take_command(self, robot: _Robot, msg: Twist) -> None:
+        """
+        Take a robot's velocity command; a non-finite one is refused, the robot keeps its last.
+
+        A stamped command's stamp is not used: its arrival time counts.
+        """
         linear_mps, angular_radps = msg.linear.x, msg.angular.z
         if not (math.isfinite(linear_mps) and math.isfinite(angular_radps)):
             self.get_logger().error(
-                f'Ignoring cmd_vel with non-finite speeds (linear.x={linear_mps}, '
-                f'angular.z={angular_radps}).', throttle_duration_sec=5.0)
+                f'Ignoring {robot.cmd_vel_subscription.topic_name} with non-finite speeds '
+                f'(linear.x={linear_mps}, angular.z={angular_radps}).',
+                throttle_duration_sec=5.0)
             return
-        self._watchdog.command(linear_mps, angular_radps, self._world.time_s)
-        self._commands_received += 1
-        if self._awaiting_command:
-            self._resume()
-
-    def cmd_vel_stamped_callback(self, msg: TwistStamped) -> None:
-        """Take a stamped velocity command; its stamp is not used (arrival time counts)."""
-        self.cmd_vel_callback(msg.twist)
+        robot.watchdog.command(linear_mps, angular_radps, self._world.time_s)
+        robot.commands_received += 1
+        if robot.awaiting_command:
+            robot.awaiting_command = False
+            # Lockstep: time runs on once every robot answered its frame.
+            if not self._awaiting_command:
+                self._resume()
 
     def cmd_vel_type_check_callback(self) -> None:
         """Warn once per type when cmd_vel has publishers this node cannot hear."""
         expected = TWIST_TYPES[self._cmd_vel_stamped]
-        topic = self._cmd_vel_subscription.topic_name
-        for info in self.get_publishers_info_by_topic(topic):
-            if info.topic_type == expected or info.topic_type in (
-                    self._wrong_cmd_vel_types_reported):
-                continue
-            self._wrong_cmd_vel_types_reported.add(info.topic_type)
-            stamped = info.topic_type == TWIST_TYPES[True]
-            self.get_logger().error(
-                f'{info.node_namespace.rstrip("/")}/{info.node_name} publishes {topic} as '
-                f'{info.topic_type}, but this simulator takes {expected}: those commands never '
-                f'arrive. Restart with -p cmd_vel_stamped:={str(stamped).lower()} or change '
-                'the publisher.')
+        for robot in self._robots:
+            topic = robot.cmd_vel_subscription.topic_name
+            for info in self.get_publishers_info_by_topic(topic):
+                if info.topic_type == expected or info.topic_type in (
+                        self._wrong_cmd_vel_types_reported):
+                    continue
+                self._wrong_cmd_vel_types_reported.add(info.topic_type)
+                stamped = info.topic_type == TWIST_TYPES[True]
+                self.get_logger().error(
+                    f'{info.node_namespace.rstrip("/")}/{info.node_name} publishes {topic} as '
+                    f'{info.topic_type}, but this simulator takes {expected}: those commands '
+                    f'never arrive. Restart with -p cmd_vel_stamped:={str(stamped).lower()} '
+                    'or change the publisher.')
 
     def pause_callback(self, request: SetBool.Request, response: SetBool.Response):
         """Pause (``data: true``) or resume (``data: false``) simulated time."""
@@ -467,7 +542,7 @@ class SimulatorNode(Node):
             return response
         steps = self.get_parameter('step_physics_steps').value
         # Stepping is the caller driving time: it does not stop for lockstep answers.
-        self._awaiting_command = False
+        self._stop_awaiting()
         self._lockstep_timeout_timer.cancel()
         self._advance_to(self._world.time_s + steps * self._world.timestep_s,
                          stop_for_commands=False)
@@ -476,17 +551,19 @@ class SimulatorNode(Node):
         return response
 
     def reset_callback(self, request: Trigger.Request, response: Trigger.Response):
-        """Put the robot back at the course start, at rest, and start the score afresh."""
+        """Put the robots back at their starts, at rest, and start the scores afresh."""
         self._world.reset_robot()
-        self._watchdog.reset()
-        self._lap_tracker.reset()
-        self._odometry.reset()
-        self._odometry.update(*self._world.wheel_angles(), self._world.time_s)
-        self._trail.clear()
-        self._laps_reported = 0
+        for robot in self._robots:
+            robot.watchdog.reset()
+            robot.lap_tracker.reset()
+            robot.odometry.reset()
+            robot.odometry.update(*self._world.wheel_angles(robot.index), self._world.time_s)
+            robot.trail.clear()
+            robot.laps_reported = 0
         self._finished = False
         response.success = True
-        response.message = (f'Robot back at the start of {self._world.course.name} at '
+        who = 'Robot' if len(self._robots) == 1 else 'Robots'
+        response.message = (f'{who} back at the start of {self._world.course.name} at '
                             f'{self._world.time_s:.3f} s; score, odometry and trail restarted.')
         self.get_logger().info(response.message)
         return response
@@ -518,20 +595,27 @@ class SimulatorNode(Node):
         self._advance_to(target_sim_s, deadline_s=now_s + MAX_CATCH_UP_WALL_S)
 
     def _partner_present(self) -> bool:
-        return (self._image_publisher is not None
-                and (self._image_publisher.get_subscription_count() > 0
-                     or self._compressed_publisher.get_subscription_count() > 0)
-                and self.count_publishers(self._cmd_vel_subscription.topic_name) > 0)
+        """Tell whether every robot has its follower: a camera subscriber and a commander."""
+        return all(self._robot_partner_present(robot) for robot in self._robots)
+
+    def _robot_partner_present(self, robot: _Robot) -> bool:
+        return (robot.image_publisher is not None
+                and (robot.image_publisher.get_subscription_count() > 0
+                     or robot.compressed_publisher.get_subscription_count() > 0)
+                and self.count_publishers(robot.cmd_vel_subscription.topic_name) > 0)
 
     def _hold_for_partner(self) -> None:
         self._timer.cancel()
         self._partner_check_timer.reset()
         if not self._holding_for_partner:
             self._holding_for_partner = True
+            waiting_for = ', '.join(
+                f'{robot.image_publisher.topic_name if robot.image_publisher else "the camera"}'
+                f' and one publishes {robot.cmd_vel_subscription.topic_name}'
+                for robot in self._robots if not self._robot_partner_present(robot))
             self.get_logger().info(
                 f'Lockstep: holding time at {self._world.time_s:.3f} s until a node subscribes '
-                f'to {self._image_publisher.topic_name if self._image_publisher else "the camera"}'
-                f' and one publishes {self._cmd_vel_subscription.topic_name}.')
+                f'to {waiting_for}.')
 
     def partner_check_callback(self) -> None:
         """Lockstep: let time run again once the follower is there."""
@@ -551,12 +635,15 @@ class SimulatorNode(Node):
         self._resume()
 
     def _await_command(self) -> None:
-        self._awaiting_command = True
         self._timer.cancel()
         self._lockstep_timeout_timer.reset()
 
+    def _stop_awaiting(self) -> None:
+        for robot in self._robots:
+            robot.awaiting_command = False
+
     def _resume(self) -> None:
-        self._awaiting_command = False
+        self._stop_awaiting()
         self._lockstep_timeout_timer.cancel()
         if not self._paused:
             self._timer.reset()
@@ -574,9 +661,10 @@ class SimulatorNode(Node):
             # so this equals stepping one by one, without Python between the steps.
             time_s = world.time_s
             next_event_s = min(periodic.next_s for periodic in self._schedule)
-            expires_at_s = self._watchdog.expires_at_s()
-            if expires_at_s > time_s + TIME_EPSILON_S:
-                next_event_s = min(next_event_s, expires_at_s)
+            for robot in self._robots:
+                expires_at_s = robot.watchdog.expires_at_s()
+                if expires_at_s > time_s + TIME_EPSILON_S:
+                    next_event_s = min(next_event_s, expires_at_s)
             if self._run_duration_s > 0.0:
                 next_event_s = min(next_event_s, self._run_duration_s)
             self._physics_steps(min(
@@ -586,7 +674,8 @@ class SimulatorNode(Node):
 
     def _physics_steps(self, steps: int) -> None:
         world = self._world
-        world.set_twist(*self._watchdog.current(world.time_s))
+        for robot in self._robots:
+            world.set_twist(*robot.watchdog.current(world.time_s), robot=robot.index)
         world.step(steps * world.timestep_s)
         world.sync_viewer()
         time_s = world.time_s
@@ -601,84 +690,99 @@ class SimulatorNode(Node):
         self._finished = True
         if self._last_score_stamp != stamp:
             self._publish_score(stamp)
-        summary = self._lap_tracker.summary()
-        self.get_logger().info(
-            f'Run of {self._world.time_s:.1f} s simulated time done: '
-            f"{summary['laps_completed']} laps, cross-track RMS "
-            f"{100 * summary['rms_distance_from_line_m']:.1f} cm, "
-            f"max {100 * summary['max_distance_from_line_m']:.1f} cm.")
+        for robot in self._robots:
+            summary = robot.lap_tracker.summary()
+            self.get_logger().info(
+                f'{robot.log_prefix()}Run of {self._world.time_s:.1f} s simulated time done: '
+                f"{summary['laps_completed']} laps, cross-track RMS "
+                f"{100 * summary['rms_distance_from_line_m']:.1f} cm, "
+                f"max {100 * summary['max_distance_from_line_m']:.1f} cm.")
 
     def _publish_clock_and_score_pose(self, stamp: Time) -> None:
         self._clock_publisher.publish(ClockMsg(clock=stamp))
-        x_m, y_m, _ = self._world.robot_pose()
-        self._lap_tracker.update(x_m, y_m, self._world.time_s)
-        self._trail.add(x_m, y_m)
+        for robot in self._robots:
+            x_m, y_m, _ = self._world.robot_pose(robot.index)
+            robot.lap_tracker.update(x_m, y_m, self._world.time_s)
+            robot.trail.add(x_m, y_m)
 
     def _publish_robot_state(self, stamp: Time) -> None:
         world = self._world
-        wheel_angles_rad = world.wheel_angles()
-        self._odometry.update(*wheel_angles_rad, world.time_s)
-        self._odom_msg.header.stamp = stamp
-        self._odom_publisher.publish(messages.fill_odometry(
-            self._odom_msg, self._odometry.pose, self._odometry.twist))
-        self._ground_truth_msg.header.stamp = stamp
-        self._ground_truth_publisher.publish(messages.fill_odometry(
-            self._ground_truth_msg, world.robot_pose(), world.robot_twist(), exact=True))
-        self._joint_state_publisher.publish(messages.joint_state(
-            WHEEL_JOINTS, wheel_angles_rad, world.wheel_speeds(), stamp))
+        odom_transforms = []
+        for robot in self._robots:
+            wheel_angles_rad = world.wheel_angles(robot.index)
+            robot.odometry.update(*wheel_angles_rad, world.time_s)
+            robot.odom_msg.header.stamp = stamp
+            robot.odom_publisher.publish(messages.fill_odometry(
+                robot.odom_msg, robot.odometry.pose, robot.odometry.twist))
+            robot.ground_truth_msg.header.stamp = stamp
+            robot.ground_truth_publisher.publish(messages.fill_odometry(
+                robot.ground_truth_msg, world.robot_pose(robot.index),
+                world.robot_twist(robot.index), exact=True))
+            robot.joint_state_publisher.publish(messages.joint_state(
+                robot.joint_names, wheel_angles_rad, world.wheel_speeds(robot.index), stamp))
+            odom_transforms.append(messages.transform_stamped(frames.FrameTransform.planar(
+                robot.frame(frames.ODOM_FRAME), robot.frame(frames.BASE_FOOTPRINT_FRAME),
+                *robot.odometry.pose), stamp))
         if self._tf_publisher is not None:
-            self._tf_publisher.publish(TFMessage(transforms=[messages.transform_stamped(
-                frames.FrameTransform.planar(frames.ODOM_FRAME, frames.BASE_FOOTPRINT_FRAME,
-                                             *self._odometry.pose), stamp)]))
+            self._tf_publisher.publish(TFMessage(transforms=odom_transforms))
 
     def _publish_cameras(self, stamp: Time) -> None:
-        if self._image_publisher is not None:
-            # camera_info first: a follower then knows the intrinsics when the image comes.
-            self._rgb_info_msg.header.stamp = stamp
-            self._camera_info_publisher.publish(self._rgb_info_msg)
-            raw_wanted = self._image_publisher.get_subscription_count() > 0
-            compressed_wanted = self._compressed_publisher.get_subscription_count() > 0
-            if raw_wanted or compressed_wanted:
-                self._publish_rgb(stamp, raw_wanted, compressed_wanted)
-                if self._lockstep and not self._paused and self._partner_present():
-                    self._await_command()
-        depth_wanted = (self._depth_publisher is not None
-                        and self._depth_publisher.get_subscription_count() > 0)
-        points_wanted = (self._points_publisher is not None
-                         and self._points_publisher.get_subscription_count() > 0)
-        if depth_wanted or points_wanted:
-            self._publish_depth(stamp, depth_wanted, points_wanted)
-        if self._depth_info_publisher is not None:
-            self._depth_info_msg.header.stamp = stamp
-            self._depth_info_publisher.publish(self._depth_info_msg)
+        for robot in self._robots:
+            self._publish_robot_cameras(robot, stamp)
+        if self._awaiting_command:
+            self._await_command()
 
-    def _publish_rgb(self, stamp: Time, raw: bool = True, compressed: bool = False) -> None:
-        rgb = self._world.render_camera()
+    def _publish_robot_cameras(self, robot: _Robot, stamp: Time) -> None:
+        if robot.image_publisher is not None:
+            # camera_info first: a follower then knows the intrinsics when the image comes.
+            robot.rgb_info_msg.header.stamp = stamp
+            robot.camera_info_publisher.publish(robot.rgb_info_msg)
+            raw_wanted = robot.image_publisher.get_subscription_count() > 0
+            compressed_wanted = robot.compressed_publisher.get_subscription_count() > 0
+            if raw_wanted or compressed_wanted:
+                self._publish_rgb(robot, stamp, raw_wanted, compressed_wanted)
+                if self._lockstep and not self._paused and self._partner_present():
+                    robot.awaiting_command = True
+        depth_wanted = (robot.depth_publisher is not None
+                        and robot.depth_publisher.get_subscription_count() > 0)
+        points_wanted = (robot.points_publisher is not None
+                         and robot.points_publisher.get_subscription_count() > 0)
+        if depth_wanted or points_wanted:
+            self._publish_depth(robot, stamp, depth_wanted, points_wanted)
+        if robot.depth_info_publisher is not None:
+            robot.depth_info_msg.header.stamp = stamp
+            robot.depth_info_publisher.publish(robot.depth_info_msg)
+
+    def _publish_rgb(self, robot: _Robot, stamp: Time, raw: bool = True,
+                     compressed: bool = False) -> None:
+        rgb = self._world.render_camera(robot.index)
         width_px, height_px = self._world.image_size_px
         if raw:
             # Converted straight into the message: no frame-sized copy of our own.
             from_rgb(rgb, self._image_encoding,
-                     message_pixels(self._image_msg, height_px, width_px,
+                     message_pixels(robot.image_msg, height_px, width_px,
                                     self._image_encoding))
-            self._image_msg.header.stamp = stamp
-            self._image_publisher.publish(self._image_msg)
+            robot.image_msg.header.stamp = stamp
+            robot.image_publisher.publish(robot.image_msg)
         if compressed:
             array_to_compressed(rgb, 'rgb8', jpeg_quality=self.get_parameter(
-                'jpeg_quality').value, msg=self._compressed_msg)
-            self._compressed_msg.header.stamp = stamp
-            self._compressed_publisher.publish(self._compressed_msg)
+                'jpeg_quality').value, msg=robot.compressed_msg)
+            robot.compressed_msg.header.stamp = stamp
+            robot.compressed_publisher.publish(robot.compressed_msg)
 
-    def _publish_depth(self, stamp: Time, depth_wanted: bool, points_wanted: bool) -> None:
-        depth_m = self._world.render_depth()
+    def _publish_depth(self, robot: _Robot, stamp: Time, depth_wanted: bool,
+                       points_wanted: bool) -> None:
+        # The first robot is the world's default one: a single robot's calls stay as they were.
+        depth_m = self._world.render_depth(*([robot.index] if robot.index else []))
         if depth_wanted:
-            msg = array_to_image(depth_m, '32FC1', self._depth_msg)
+            msg = array_to_image(depth_m, '32FC1', robot.depth_msg)
             msg.header.stamp = stamp
-            self._depth_publisher.publish(msg)
+            robot.depth_publisher.publish(msg)
         if points_wanted:
             depth_to_points(depth_m, *self._world.camera_intrinsics(), out=self._points_xyz)
-            msg = messages.fill_point_cloud(self._points_xyz, self._points_msg)
+            msg = messages.fill_point_cloud(self._points_xyz, robot.points_msg)
             msg.header.stamp = stamp
-            self._points_publisher.publish(msg)
+            robot.points_publisher.publish(msg)
 
     def _publish_overview(self, stamp: Time) -> None:
         if self._overview_publisher.get_subscription_count() == 0:
@@ -686,34 +790,41 @@ class SimulatorNode(Node):
         size_px = self._overview_size_px
         rgb = self._world.render_overview(size_px)
         bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
-        if len(self._trail) > 1:
-            trail_px = self._world.overview_pixels(np.asarray(self._trail.points), size_px)
-            cv2.polylines(bgr, [np.round(trail_px).astype(np.int32)], isClosed=False,
-                          color=(0, 0, 255), thickness=2, lineType=cv2.LINE_AA)
+        for robot in self._robots:
+            if len(robot.trail) > 1:
+                trail_px = self._world.overview_pixels(np.asarray(robot.trail.points), size_px)
+                cv2.polylines(bgr, [np.round(trail_px).astype(np.int32)], isClosed=False,
+                              color=TRAIL_COLOURS_BGR[robot.index % len(TRAIL_COLOURS_BGR)],
+                              thickness=2, lineType=cv2.LINE_AA)
         msg = array_to_image(bgr, 'bgr8')
         msg.header.stamp = stamp
         msg.header.frame_id = frames.WORLD_FRAME
         self._overview_publisher.publish(msg)
 
     def _report_laps(self) -> None:
-        lap_times_s = self._lap_tracker.lap_times_s
-        while self._laps_reported < len(lap_times_s):
-            self._laps_reported += 1
-            self.get_logger().info(
-                f'Lap {self._laps_reported} completed in '
-                f'{lap_times_s[self._laps_reported - 1]:.1f} s (simulated time).')
+        for robot in self._robots:
+            lap_times_s = robot.lap_tracker.lap_times_s
+            while robot.laps_reported < len(lap_times_s):
+                robot.laps_reported += 1
+                self.get_logger().info(
+                    f'{robot.log_prefix()}Lap {robot.laps_reported} completed in '
+                    f'{lap_times_s[robot.laps_reported - 1]:.1f} s (simulated time).')
 
     def _publish_score(self, stamp: Time) -> None:
         self._last_score_stamp = stamp
-        summary = self._lap_tracker.summary()
-        status = DiagnosticStatus(
-            level=DiagnosticStatus.OK, name=score_status_name(self.get_fully_qualified_name()),
-            hardware_id=self.get_fully_qualified_name(),
-            message=f"{summary['laps_completed']} laps, "
-                    f'{100 * self._lap_tracker.distance_from_line_m:.1f} cm from the line')
-        status.values = [KeyValue(key=key, value=str(value)) for key, value in summary.items()]
+        statuses = []
+        for robot in self._robots:
+            summary = robot.lap_tracker.summary()
+            status = DiagnosticStatus(
+                level=DiagnosticStatus.OK, name=score_status_name(robot.score_name),
+                hardware_id=robot.score_name,
+                message=f"{summary['laps_completed']} laps, "
+                        f'{100 * robot.lap_tracker.distance_from_line_m:.1f} cm from the line')
+            status.values = [KeyValue(key=key, value=str(value))
+                             for key, value in summary.items()]
+            statuses.append(status)
         self._diagnostics_publisher.publish(DiagnosticArray(
-            header=Header(stamp=stamp, frame_id=frames.WORLD_FRAME), status=[status]))
+            header=Header(stamp=stamp, frame_id=frames.WORLD_FRAME), status=statuses))
 
     def destroy_node(self):
         """Let reliable subscribers have every message, release the renderer, then the node."""

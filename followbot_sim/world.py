@@ -23,10 +23,14 @@ from followbot.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPT
 from followbot.package_files import share_file
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
+from followbot_sim.robots import (DEFAULT_ROBOT_SPACING_M, robot_prefix, SINGLE_ROBOT,
+                                  start_arc_lengths_m)
 import mujoco
 import numpy as np
 
 SCENE_FILE = 'scene.xml'
+# The robot alone, for worlds of several robots (scene.xml includes it once, unprefixed).
+ROBOT_FILE = 'turtlebot2.xml'
 ROBOT_BODY = BASE_FOOTPRINT_FRAME
 ROBOT_FREE_JOINT = 'base_free'
 # The bodies of the robot's fixed frames carry the frames' names.
@@ -112,13 +116,32 @@ def _mujoco_to_xyzw(quaternion_wxyz) -> tuple[float, float, float, float]:
     return x, y, z, w
 
 
+class _RobotParts:
+    """The model indices of one robot's joints, motors, cameras and root body."""
+
+    def __init__(self, model: mujoco.MjModel, prefix: str):
+        self.camera_id = model.camera(prefix + CAMERA_NAME).id
+        self.depth_camera_id = model.camera(prefix + DEPTH_CAMERA_NAME).id
+        self.left_actuator = model.actuator(prefix + LEFT_MOTOR).id
+        self.right_actuator = model.actuator(prefix + RIGHT_MOTOR).id
+        free_joint = model.joint(prefix + ROBOT_FREE_JOINT)
+        self.free_joint_qpos = free_joint.qposadr[0]
+        self.free_joint_qvel = free_joint.dofadr[0]
+        left_wheel = model.joint(prefix + LEFT_WHEEL_JOINT)
+        right_wheel = model.joint(prefix + RIGHT_WHEEL_JOINT)
+        self.wheel_qpos = (left_wheel.qposadr[0], right_wheel.qposadr[0])
+        self.wheel_qvel = (left_wheel.dofadr[0], right_wheel.dofadr[0])
+        self.body_id = model.body(prefix + ROBOT_BODY).id
+
+
 class FollowbotWorld:
     """
-    A TurtleBot 2 with a Kinect-style camera on a course, in MuJoCo.
+    TurtleBot 2s with a Kinect-style camera on a course, in MuJoCo: one, or several that collide.
 
-    Drive it with :meth:`set_twist` or :meth:`set_wheel_speeds`, advance it with :meth:`step`,
-    read the cameras with :meth:`render_camera` and :meth:`render_depth`, the wheel encoders
-    with :meth:`wheel_angles`, and the true pose with :meth:`robot_pose`.
+    Drive a robot with :meth:`set_twist` or :meth:`set_wheel_speeds`, advance the world with
+    :meth:`step`, read the cameras with :meth:`render_camera` and :meth:`render_depth`, the
+    wheel encoders with :meth:`wheel_angles`, and the true pose with :meth:`robot_pose`. Each
+    takes the robot's index in :attr:`robot_names` (0, the first, by default).
     """
 
     def __init__(self, course: Course, image_width_px: int = DEFAULT_IMAGE_WIDTH_PX,
@@ -128,7 +151,9 @@ class FollowbotWorld:
                  texture_size_px: int = 2048, limits: DiffDriveLimits = DiffDriveLimits(),
                  models_dir: Path | None = None, camera_noise_stddev: float = 0.0,
                  noise_seed: int = 0, min_depth_m: float = DEFAULT_MIN_DEPTH_M,
-                 max_depth_m: float = DEFAULT_MAX_DEPTH_M):
+                 max_depth_m: float = DEFAULT_MAX_DEPTH_M,
+                 robot_names: tuple[str, ...] = (SINGLE_ROBOT,),
+                 robot_spacing_m: float = DEFAULT_ROBOT_SPACING_M):
         """
         Load the scene, paint the course on the floor and put the robot at the course start.
 
@@ -150,9 +175,14 @@ class FollowbotWorld:
             blind zone is ``KINECT_MIN_DEPTH_M`` (0.45 m).
         :param max_depth_m: farther depths read as NaN (the Kinect's ~8 m; ``math.inf`` keeps
             all up to the renderer's far clipping plane).
+        :param robot_names: the robots, from :func:`followbot_sim.robots.robot_names`: one
+            unnamed robot (plain model names) by default; named robots' model elements are
+            prefixed ``<name>/``. The first starts at the course start, each next one
+            ``robot_spacing_m`` behind the one before it along the line.
+        :param robot_spacing_m: centre-to-centre distance between robots along the line.
         :raises ValueError: for a non-positive image size, a field of view outside (0, 180),
             a pitch outside [-90, 90], a negative or non-finite noise level, a negative seed or
-            a depth range that is not 0 <= min < max.
+            a depth range that is not 0 <= min < max, or robots that do not fit the course.
         """
         if image_width_px <= 0 or image_height_px <= 0:
             raise ValueError(
@@ -170,6 +200,14 @@ class FollowbotWorld:
         if not 0.0 <= min_depth_m < max_depth_m:
             raise ValueError('The depth range must satisfy 0 <= min_depth_m < max_depth_m, got '
                              f'min_depth_m={min_depth_m}, max_depth_m={max_depth_m}.')
+        if not robot_names or (SINGLE_ROBOT in robot_names and len(robot_names) > 1):
+            raise ValueError(f'robot_names must be one unnamed robot or named robots, got '
+                             f'{list(robot_names)}.')
+        self._robot_names = tuple(robot_names)
+        self._start_arcs_m = start_arc_lengths_m(len(robot_names), robot_spacing_m)
+        if len(robot_names) * robot_spacing_m > course.length_m:
+            raise ValueError(f'{len(robot_names)} robots {robot_spacing_m} m apart do not fit '
+                             f'on the {course.length_m:.1f} m course {course.name}.')
         self._course = course
         self._limits = limits
         self._image_size_px = (image_width_px, image_height_px)
@@ -177,29 +215,26 @@ class FollowbotWorld:
         self._fx_px = focal_length_px(image_width_px, horizontal_fov_deg)
         models_dir = Path(models_dir) if models_dir is not None else models_directory()
         spec = mujoco.MjSpec.from_file(str(models_dir / SCENE_FILE))
+        if self._robot_names != (SINGLE_ROBOT,):
+            self._replace_robot_with_named_ones(spec, models_dir)
         spec.texture(COURSE_TEXTURE_NAME).width = texture_size_px
         spec.texture(COURSE_TEXTURE_NAME).height = texture_size_px
         # The off-screen buffer must hold the camera image; keep room for the overview too.
         spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, image_width_px)
         spec.visual.global_.offheight = max(spec.visual.global_.offheight, image_height_px)
         self._fit_floor_to_course(spec)
-        self._tilt_kinect(spec, camera_pitch_deg)
         camera_fovy_deg = math.degrees(2.0 * math.atan((image_height_px / 2.0) / self._fx_px))
-        for camera_name in (CAMERA_NAME, DEPTH_CAMERA_NAME):
-            spec.camera(camera_name).fovy = camera_fovy_deg
+        for prefix in self._robot_prefixes():
+            self._tilt_kinect(spec, camera_pitch_deg, prefix)
+            for camera_name in (CAMERA_NAME, DEPTH_CAMERA_NAME):
+                spec.camera(prefix + camera_name).fovy = camera_fovy_deg
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         self._paint_course(texture_size_px)
 
-        self._camera_id = self.model.camera(CAMERA_NAME).id
-        self._depth_camera_id = self.model.camera(DEPTH_CAMERA_NAME).id
-        self._left_actuator = self.model.actuator(LEFT_MOTOR).id
-        self._right_actuator = self.model.actuator(RIGHT_MOTOR).id
-        self._free_joint_qpos = self.model.joint(ROBOT_FREE_JOINT).qposadr[0]
-        self._free_joint_qvel = self.model.joint(ROBOT_FREE_JOINT).dofadr[0]
-        self._wheel_qpos = (self.model.joint(LEFT_WHEEL_JOINT).qposadr[0],
-                            self.model.joint(RIGHT_WHEEL_JOINT).qposadr[0])
-        self._robot_body = self.model.body(ROBOT_BODY).id
+        self._robots = [_RobotParts(self.model, prefix) for prefix in self._robot_prefixes()]
+        self._all_wheel_qpos = [address for robot in self._robots
+                                for address in robot.wheel_qpos]
         self._renderer = None
         self._overview_renderer = None
         self._viewer = None
@@ -214,6 +249,24 @@ class FollowbotWorld:
         self._noise_seed = int(noise_seed)
         self._noise_bank = None
         self.reset()
+
+    def _robot_prefixes(self) -> list[str]:
+        return [robot_prefix(name) for name in self._robot_names]
+
+    def _replace_robot_with_named_ones(self, spec: mujoco.MjSpec, models_dir: Path) -> None:
+        """
+        Take out the scene's unnamed robot and put in a copy per name, its elements prefixed.
+
+        :param spec: the scene's spec, before compiling.
+        :param models_dir: folder with the robot's own model file.
+        """
+        spec.delete(spec.body(ROBOT_BODY))
+        for actuator in list(spec.actuators):
+            spec.delete(actuator)
+        for prefix in self._robot_prefixes():
+            robot_spec = mujoco.MjSpec.from_file(str(models_dir / ROBOT_FILE))
+            # Attached at the origin: _place_robot sets each robot's pose on its free joint.
+            spec.worldbody.add_frame().attach_body(robot_spec.body(ROBOT_BODY), prefix, '')
 
     def _fit_floor_to_course(self, spec: mujoco.MjSpec) -> None:
         """
@@ -231,18 +284,19 @@ class FollowbotWorld:
                         float(overview.pos[2]) * floor_size_m / scene_floor_size_m]
 
     @staticmethod
-    def _tilt_kinect(spec: mujoco.MjSpec, camera_pitch_deg: float) -> None:
+    def _tilt_kinect(spec: mujoco.MjSpec, camera_pitch_deg: float, prefix: str) -> None:
         """
-        Pitch the whole Kinect (``camera_link`` and the cameras on it) down.
+        Pitch the whole Kinect (``camera_link`` and the cameras on it) of one robot down.
 
         :param spec: the scene's spec, before compiling.
         :param camera_pitch_deg: downward tilt in degrees.
+        :param prefix: the robot's name prefix.
         """
         # Pitch down = a positive rotation about the body's y axis (left), applied to the
         # level mounting of the model.
         half_pitch_rad = math.radians(camera_pitch_deg) / 2.0
         pitch_quat = np.array([math.cos(half_pitch_rad), 0.0, math.sin(half_pitch_rad), 0.0])
-        camera_link = spec.body(CAMERA_LINK_BODY)
+        camera_link = spec.body(prefix + CAMERA_LINK_BODY)
         tilted_quat = np.empty(4)
         mujoco.mju_mulQuat(tilted_quat, np.asarray(camera_link.quat, dtype=float), pitch_quat)
         camera_link.quat = tilted_quat
@@ -257,6 +311,11 @@ class FollowbotWorld:
     def course(self) -> Course:
         """Return the course the robot drives on."""
         return self._course
+
+    @property
+    def robot_names(self) -> tuple[str, ...]:
+        """Return the robots' names, in index order (``('',)`` for one unnamed robot)."""
+        return self._robot_names
 
     @property
     def limits(self) -> DiffDriveLimits:
@@ -305,22 +364,27 @@ class FollowbotWorld:
         width_px, height_px = self._image_size_px
         return self._fx_px, self._fx_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0
 
-    def sensor_frames(self) -> list[FrameTransform]:
+    def sensor_frames(self, robot: int = 0) -> list[FrameTransform]:
         """
-        Return the robot's fixed frames, read from the compiled model.
+        Return a robot's fixed frames, read from the compiled model.
 
         The chain is base_footprint -> base_link -> camera_link (with the Kinect's pitch) ->
         camera_rgb_frame -> camera_rgb_optical_frame, and camera_link -> camera_depth_frame ->
         camera_depth_optical_frame. With ``world -> base_footprint`` from :meth:`robot_pose`
-        and :meth:`camera_intrinsics` it maps floor points to where MuJoCo draws them.
+        and :meth:`camera_intrinsics` it maps floor points to where MuJoCo draws them. A named
+        robot's frames carry its prefix (``r1/base_link``), as its bodies do.
 
+        :param robot: the robot's index.
         :return: the transforms, parents before children.
         """
-        transforms = [self._body_transform(BASE_LINK_BODY),
-                      self._body_transform(CAMERA_LINK_BODY)]
+        prefix = robot_prefix(self._robot_names[robot])
+        parts = self._robots[robot]
+        transforms = [self._body_transform(prefix + BASE_LINK_BODY),
+                      self._body_transform(prefix + CAMERA_LINK_BODY)]
         for camera_id, body_frame, optical_frame in (
-                (self._camera_id, CAMERA_RGB_FRAME, CAMERA_RGB_OPTICAL_FRAME),
-                (self._depth_camera_id, CAMERA_DEPTH_FRAME, CAMERA_DEPTH_OPTICAL_FRAME)):
+                (parts.camera_id, prefix + CAMERA_RGB_FRAME, prefix + CAMERA_RGB_OPTICAL_FRAME),
+                (parts.depth_camera_id, prefix + CAMERA_DEPTH_FRAME,
+                 prefix + CAMERA_DEPTH_OPTICAL_FRAME)):
             parent = self.model.body(self.model.cam_bodyid[camera_id]).name
             camera_axes = np.empty(9)
             mujoco.mju_quat2Mat(camera_axes, self.model.cam_quat[camera_id])
@@ -344,35 +408,38 @@ class FollowbotWorld:
         return FrameTransform(parent, body_name, tuple(body.pos), _mujoco_to_xyzw(body.quat))
 
     def reset(self) -> None:
-        """Put the robot at rest at the course start and set the time to zero."""
+        """Put the robots at rest at their starts and set the time to zero."""
         mujoco.mj_resetData(self.model, self.data)
-        self._place_robot()
+        self._place_robots()
         self._draw_noise_bank()
 
     def reset_robot(self, pose: tuple[float, float, float] | None = None) -> None:
         """
-        Put the robot at rest at the course start, or at a pose, keeping the time running on.
+        Put the robots at rest at their starts, the first at a pose if given, keeping the time.
 
         The simulator's clock never goes backwards. The wheel angles are kept, as a real
         robot's encoders keep their counts when it is carried back: wheel odometry sees no
         motion (restart it if it should read the start).
 
-        :param pose: (x m, y m, yaw rad) of ``base_footprint`` on the floor; None for the
-            course's start pose.
+        :param pose: (x m, y m, yaw rad) of the first robot's ``base_footprint`` on the floor;
+            None for the course's start pose.
         """
         time_s = self.data.time
-        wheel_angles_rad = self.data.qpos[list(self._wheel_qpos)].copy()
+        wheel_angles_rad = self.data.qpos[self._all_wheel_qpos].copy()
         mujoco.mj_resetData(self.model, self.data)
         self.data.time = time_s
-        self.data.qpos[list(self._wheel_qpos)] = wheel_angles_rad
-        self._place_robot(pose)
+        self.data.qpos[self._all_wheel_qpos] = wheel_angles_rad
+        self._place_robots(pose)
 
-    def _place_robot(self, pose=None) -> None:
-        x_m, y_m, yaw_rad = self._course.start_pose() if pose is None else pose
-        qpos = self._free_joint_qpos
-        self.data.qpos[qpos:qpos + 3] = (x_m, y_m, 0.0)
-        self.data.qpos[qpos + 3:qpos + 7] = (math.cos(yaw_rad / 2.0), 0.0, 0.0,
-                                             math.sin(yaw_rad / 2.0))
+    def _place_robots(self, first_pose=None) -> None:
+        for parts, start_arc_m in zip(self._robots, self._start_arcs_m):
+            x_m, y_m, yaw_rad = self._course.point_at(start_arc_m)
+            if first_pose is not None and parts is self._robots[0]:
+                x_m, y_m, yaw_rad = first_pose
+            qpos = parts.free_joint_qpos
+            self.data.qpos[qpos:qpos + 3] = (x_m, y_m, 0.0)
+            self.data.qpos[qpos + 3:qpos + 7] = (math.cos(yaw_rad / 2.0), 0.0, 0.0,
+                                                 math.sin(yaw_rad / 2.0))
         mujoco.mj_forward(self.model, self.data)
 
     def _draw_noise_bank(self) -> None:
@@ -390,7 +457,7 @@ class FollowbotWorld:
         # (raise, headroom below saturation, lower): see _add_camera_noise.
         self._noise_bank = (raise_levels, MAX_INTENSITY - raise_levels, lower_levels)
 
-    def _add_camera_noise(self, image: np.ndarray) -> None:
+    def _add_camera_noise(self, image: np.ndarray, robot: int) -> None:
         """
         Add the noise of this instant to an RGB image in place, saturating at 0 and 255.
 
@@ -402,11 +469,14 @@ class FollowbotWorld:
         overflow.
 
         :param image: a C-contiguous uint8 image.
+        :param robot: the index of the robot whose camera took it: each robot's noise differs.
         """
         raise_levels, headroom_levels, lower_levels = self._noise_bank
         size = image.size
         step_index = round(self.data.time / self.model.opt.timestep)
-        generator = np.random.Generator(np.random.PCG64([self._noise_seed, step_index]))
+        # The first robot keeps the single robot's sequence; the others draw their own.
+        entropy = [self._noise_seed, step_index] + ([robot] if robot else [])
+        generator = np.random.Generator(np.random.PCG64(entropy))
         offset = int(generator.integers(0, len(raise_levels) - size, endpoint=True))
         window = slice(offset, offset + size)
         flat = image.reshape(-1)
@@ -415,24 +485,28 @@ class FollowbotWorld:
         np.maximum(flat, lower_levels[window], out=flat)
         flat -= lower_levels[window]
 
-    def set_wheel_speeds(self, left_radps: float, right_radps: float) -> None:
+    def set_wheel_speeds(self, left_radps: float, right_radps: float, robot: int = 0) -> None:
         """
-        Set the wheel velocity targets of the motors.
+        Set the wheel velocity targets of a robot's motors.
 
         :param left_radps: left wheel speed in rad/s, positive rolling forward.
         :param right_radps: right wheel speed in rad/s, positive rolling forward.
+        :param robot: the robot's index.
         """
-        self.data.ctrl[self._left_actuator] = left_radps
-        self.data.ctrl[self._right_actuator] = right_radps
+        parts = self._robots[robot]
+        self.data.ctrl[parts.left_actuator] = left_radps
+        self.data.ctrl[parts.right_actuator] = right_radps
 
-    def set_twist(self, linear_mps: float, angular_radps: float) -> None:
+    def set_twist(self, linear_mps: float, angular_radps: float, robot: int = 0) -> None:
         """
-        Drive the base with a body twist, limited like a Kobuki.
+        Drive a robot's base with a body twist, limited like a Kobuki.
 
         :param linear_mps: forward speed in m/s.
         :param angular_radps: yaw rate in rad/s, positive to the left.
+        :param robot: the robot's index.
         """
-        self.set_wheel_speeds(*wheel_speeds_radps(linear_mps, angular_radps, self._limits))
+        self.set_wheel_speeds(*wheel_speeds_radps(linear_mps, angular_radps, self._limits),
+                              robot=robot)
 
     def step(self, duration_s: float) -> None:
         """
@@ -443,47 +517,50 @@ class FollowbotWorld:
         steps = max(1, round(duration_s / self.model.opt.timestep))
         mujoco.mj_step(self.model, self.data, nstep=steps)
 
-    def robot_pose(self) -> tuple[float, float, float]:
+    def robot_pose(self, robot: int = 0) -> tuple[float, float, float]:
         """
-        Return the true planar pose of ``base_footprint``.
+        Return the true planar pose of a robot's ``base_footprint``.
 
+        :param robot: the robot's index.
         :return: (x m, y m, yaw rad) in the world frame.
         """
-        qpos = self._free_joint_qpos
+        qpos = self._robots[robot].free_joint_qpos
         x_m, y_m = self.data.qpos[qpos:qpos + 2]
         yaw_rad = yaw_from_quaternion(_mujoco_to_xyzw(self.data.qpos[qpos + 3:qpos + 7]))
         return float(x_m), float(y_m), yaw_rad
 
-    def robot_twist(self) -> tuple[float, float]:
+    def robot_twist(self, robot: int = 0) -> tuple[float, float]:
         """
-        Return the true forward speed and yaw rate of the base.
+        Return the true forward speed and yaw rate of a robot's base.
 
+        :param robot: the robot's index.
         :return: (linear m/s along the robot's heading, angular rad/s).
         """
-        qvel = self._free_joint_qvel
+        qvel = self._robots[robot].free_joint_qvel
         vx, vy = self.data.qvel[qvel:qvel + 2]
-        _, _, yaw_rad = self.robot_pose()
+        _, _, yaw_rad = self.robot_pose(robot)
         forward_mps = vx * math.cos(yaw_rad) + vy * math.sin(yaw_rad)
         return float(forward_mps), float(self.data.qvel[qvel + 5])
 
-    def wheel_angles(self) -> tuple[float, float]:
+    def wheel_angles(self, robot: int = 0) -> tuple[float, float]:
         """
-        Return the wheel joint angles, as encoders would count them.
+        Return a robot's wheel joint angles, as encoders would count them.
 
+        :param robot: the robot's index.
         :return: (left, right) in radians, increasing when rolling forward, zero at
             :meth:`reset`.
         """
-        left, right = self._wheel_qpos
+        left, right = self._robots[robot].wheel_qpos
         return float(self.data.qpos[left]), float(self.data.qpos[right])
 
-    def wheel_speeds(self) -> tuple[float, float]:
+    def wheel_speeds(self, robot: int = 0) -> tuple[float, float]:
         """
-        Return the measured wheel speeds.
+        Return a robot's measured wheel speeds.
 
+        :param robot: the robot's index.
         :return: (left, right) in rad/s.
         """
-        left = self.model.joint(LEFT_WHEEL_JOINT).dofadr[0]
-        right = self.model.joint(RIGHT_WHEEL_JOINT).dofadr[0]
+        left, right = self._robots[robot].wheel_qvel
         return float(self.data.qvel[left]), float(self.data.qvel[right])
 
     def _make_renderer(self, height_px: int, width_px: int) -> mujoco.Renderer:
@@ -506,25 +583,26 @@ class FollowbotWorld:
             self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
         return self._renderer
 
-    def render_camera(self) -> np.ndarray:
+    def render_camera(self, robot: int = 0) -> np.ndarray:
         """
-        Render the robot's RGB camera, with its noise if any.
+        Render a robot's RGB camera, with its noise if any.
 
-        The returned array is reused by the next call: copy it to keep it.
+        The returned array is reused by the next call (of any robot): copy it to keep it.
 
+        :param robot: the robot's index.
         :return: an RGB uint8 array of shape (height, width, 3).
         """
         renderer = self._camera_renderer()
         renderer.disable_depth_rendering()
-        renderer.update_scene(self.data, camera=self._camera_id)
+        renderer.update_scene(self.data, camera=self._robots[robot].camera_id)
         image = renderer.render(out=self._camera_image)
         if self._noise_bank is not None:
-            self._add_camera_noise(image)
+            self._add_camera_noise(image, robot)
         return image
 
-    def render_depth(self) -> np.ndarray:
+    def render_depth(self, robot: int = 0) -> np.ndarray:
         """
-        Render the Kinect's depth camera as metric depth, like a ROS ``32FC1`` depth image.
+        Render a robot's Kinect depth camera as metric depth, like a ROS ``32FC1`` depth image.
 
         Each pixel holds z in ``camera_depth_optical_frame`` (the distance along the optical
         axis, not along the ray) in metres. MuJoCo's Renderer in depth mode already returns
@@ -536,13 +614,14 @@ class FollowbotWorld:
         (``znear * extent``, ~1 cm) clips nothing the camera can see. The depth camera is
         another viewpoint than the RGB camera, so rendering both costs two passes.
 
-        The returned array is reused by the next call: copy it to keep it.
+        The returned array is reused by the next call (of any robot): copy it to keep it.
 
+        :param robot: the robot's index.
         :return: a float32 array of shape (height, width).
         """
         renderer = self._camera_renderer()
         renderer.enable_depth_rendering()
-        renderer.update_scene(self.data, camera=self._depth_camera_id)
+        renderer.update_scene(self.data, camera=self._robots[robot].depth_camera_id)
         depth_m = renderer.render(out=self._depth_image)
         renderer.disable_depth_rendering()
         np.copyto(depth_m, np.nan,
@@ -606,7 +685,7 @@ class FollowbotWorld:
             # Follow the robot from behind and above; the user can still orbit and zoom.
             camera = self._viewer.cam
             camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-            camera.trackbodyid = self._robot_body
+            camera.trackbodyid = self._robots[0].body_id
             camera.distance = VIEWER_DISTANCE_M
             camera.elevation = VIEWER_ELEVATION_DEG
             # The azimuth is the direction the camera looks: along the robot's heading.

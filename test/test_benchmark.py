@@ -7,6 +7,7 @@ import sys
 from conftest import child_environment, run_domain_id
 from followbot.line_detector import DetectorConfig, LineDetector
 from followbot.transport import FASTDDS_PROFILE_VARIABLE
+from followbot_sim import real_frames
 from followbot_sim.benchmark import (BookPipeline, IMAGE_HEIGHT_PX, IMAGE_WIDTH_PX,
                                      parse_arguments, render_course_frames)
 import numpy as np
@@ -78,29 +79,44 @@ def test_a_short_benchmark_measures_every_section(tmp_path):
          '--json', str(figures_file)],
         env=environment, capture_output=True, text=True, timeout=BENCHMARK_TIMEOUT_S)
     assert completed.returncode == 0, completed.stdout + completed.stderr
-    for heading in ('## Perception', '## Camera image to the cmd_vel', '## Simulator'):
+    for heading in ('## Perception', '## The default follower on real camera frames',
+                    '## Camera image to the cmd_vel', '## Simulator'):
         assert heading in completed.stdout
     report = json.loads(figures_file.read_text())
 
     perception = report['perception']
     for pipeline in ('followbot', 'followbot_book_band', 'book_full_frame',
-                     'book_opencv_only'):
+                     'book_opencv_only', 'follower_bgr8', 'follower_jpeg',
+                     'follower_yuv422_yuy2', 'follower_bayer_rggb8'):
         assert perception[pipeline]['calls'] == 2 * FRAME_COUNT
         assert 0.0 < perception[pipeline]['median_us'] <= perception[pipeline]['p99_us']
 
-    with_profile, with_defaults = report['latency']
-    assert with_profile['profile'].endswith('fastdds_shm.xml')
+    nothing_exported, with_defaults = report['latency']
+    assert nothing_exported['profile'] == 'nothing exported'
     assert with_defaults['profile'] == "Fast DDS's defaults"
-    for result in (with_profile, with_defaults):
+    for result in (nothing_exported, with_defaults):
         assert 'error' not in result, result.get('error')
         assert result['rate_hz'] == 30.0
         assert 0.0 < result['p50_ms'] <= result['p99_ms'] <= result['max_ms']
         assert result['answered'] + result['dropped'] == LATENCY_FRAMES
         assert result['peak_memory_follower_mib'] > 0.0
-    # Whole frames through shared memory; Fast DDS's defaults send them as UDP fragments,
-    # and a best-effort follower misses some.
-    assert with_profile['dropped'] == 0
+    # With nothing exported the nodes take the package's profile: whole frames through shared
+    # memory. Fast DDS's defaults send them as UDP fragments, and a best-effort follower misses
+    # some.
+    assert nothing_exported['dropped'] == 0
     assert with_defaults['dropped'] > 0
+
+    real = report['real_frames']
+    if real_frames.frames_folder()[0] is None:
+        assert 'error' in real
+    else:
+        # One row per source and colour labelled in it, each scoring every band of its frames.
+        labelled = {(source.name, colour) for source in real_frames.load_labels()
+                    for colour in real_frames.LABELLED_COLOURS
+                    if any(frame.polylines(colour) for frame in source.frames)}
+        assert {(row['source'], row['colour']) for row in real['rows']} == labelled
+        for row in real['rows']:
+            assert row['right'] + row['false'] + row['missed'] == row['bands'] > 0
 
     simulation = report['simulation']
     assert 'error' not in simulation, simulation.get('error')

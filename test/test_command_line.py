@@ -7,6 +7,9 @@ from conftest import child_environment
 from followbot.node_runner import split_ros_arguments
 from followbot_sim import benchmark, latency_probe, launcher, scorecard
 import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.node import Node
 
 
 @pytest.mark.parametrize('command', [launcher, scorecard, benchmark, latency_probe],
@@ -71,3 +74,54 @@ def test_a_bad_ros_environment_is_not_called_a_bad_argument(tmp_path):
     assert result.returncode == 2, result.stdout
     assert 'ROS could not start: ROS_DOMAIN_ID is not an integral number' in result.stdout
     assert 'Invalid ROS arguments' not in result.stdout and 'Traceback' not in result.stdout
+
+
+@pytest.mark.parametrize('argv, robots, configs', [
+    ([], 1, []),
+    (['--robots', '3'], 3, []),
+    (['--configs', 'followbot,book'], 2, ['followbot', 'book']),
+    (['--robots', '2', '--configs', 'book'], 2, ['book', 'book']),
+])
+def test_followbot_races_one_robot_per_configuration(argv, robots, configs):
+    options = launcher.parse_arguments(argv)
+    assert options.robots == robots
+    assert [name for name, _ in options.configs] == configs
+    assert all(path.is_file() for _, path in options.configs)
+
+
+def test_a_parameters_file_is_a_configuration_named_by_its_stem(tmp_path):
+    params_file = tmp_path / 'fast.yaml'
+    params_file.write_text('/**/follower:\n  ros__parameters:\n    linear_speed_mps: 0.5\n')
+    options = launcher.parse_arguments(['--configs', f'book,{params_file}'])
+    assert options.configs == [('book', options.configs[0][1]), ('fast', params_file)]
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--robots', '3', '--configs', 'followbot,book'], '2 configurations for 3 robots'),
+    (['--configs', 'followbot,nonesuch'], "'nonesuch' is neither a built-in configuration"),
+    (['--robots', '0'], '--robots must be in 1..8'),
+])
+def test_followbot_refuses_robots_and_configs_that_do_not_match(argv, message, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        launcher.parse_arguments(argv)
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_each_racing_follower_runs_in_its_robots_namespace_under_the_users():
+    # rcl takes the first namespace remap that matches: the robot's must come first, and its
+    # configuration's parameters before the user's own -p, which win.
+    user_arguments = ['--ros-args', '-r', '__ns:=/team', '-p', 'linear_speed_mps:=0.3', '--']
+    book = launcher.follower_configurations('book')[0][1]
+    arguments = launcher.follower_arguments('/team', 'r2', book, user_arguments)
+    context = Context()
+    rclpy.init(args=['follower', *arguments], context=context)
+    try:
+        node = Node('follower', context=context,
+                    automatically_declare_parameters_from_overrides=True)
+        assert node.get_namespace() == '/team/r2'
+        assert node.get_parameter('linear_speed_mps').value == 0.3
+        assert node.get_parameter('band_count').value == 1  # from the book's configuration
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)

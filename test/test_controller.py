@@ -14,6 +14,7 @@ import math
 from conftest import PACKAGE_DIR
 from followbot.controller import ControllerConfig
 from followbot.controller import estimate_path
+from followbot.controller import line_ends_in_view
 from followbot.controller import LineFollowingController
 from followbot.controller import LOST_LINE_BEHAVIOURS
 from followbot.controller import MAX_TIME_STEP_S
@@ -48,7 +49,7 @@ UNLIMITED_ACCELERATIONS = {
 SETTLING_FRAMES = 60
 # What one frame did: the command returned and the controller's state after it.
 Frame = namedtuple('Frame', 'command state')
-STATES = ('waiting', 'acquiring', 'tracking', 'coasting', 'lost')
+STATES = ('waiting', 'acquiring', 'tracking', 'coasting', 'lost', 'line end')
 LEFT = 1
 RIGHT = -1
 # Rounding allowed where a bound is reached exactly.
@@ -221,7 +222,7 @@ POSITIVE_FIELDS = ('confidence_for_full_speed', 'max_lateral_acceleration_mps2',
 
 def test_every_number_of_the_config_is_checked():
     assert set(NUMBER_FIELDS) == {field.name for field in fields(ControllerConfig)} - {
-        'steering_law', 'lost_line_behaviour', 'frames_to_trust'}
+        'steering_law', 'lost_line_behaviour', 'frames_to_trust', 'stop_at_line_end'}
     assert set(POSITIVE_FIELDS) <= set(NUMBER_FIELDS)
 
 
@@ -772,7 +773,9 @@ def test_states_are_reported_by_name_through_a_whole_run():
         ('coasting', nothing_seen()), ('coasting', nothing_seen()), ('tracking', seen()),
         ('coasting', nothing_seen()), ('coasting', nothing_seen()), ('lost', nothing_seen()),
         ('acquiring', seen()), ('lost', nothing_seen()), ('acquiring', seen()),
-        ('tracking', seen()))
+        ('tracking', seen()), ('tracking', seen(seen_count=2)), ('coasting', nothing_seen()),
+        ('coasting', nothing_seen()), ('line end', nothing_seen()), ('line end', nothing_seen()),
+        ('acquiring', seen()), ('tracking', seen()))
     states = []
     for index, (_, detection) in enumerate(frames):
         controller.update(detection, index * FRAME_PERIOD_S, STRAIGHT_AHEAD_M)
@@ -862,8 +865,10 @@ def test_the_line_found_after_it_was_lost_must_be_trusted_again():
 ))
 def test_search_turns_in_place_towards_the_side_of_the_last_steering(
         steering_law, detection, floor_xy_m, side):
+    # Two near bands and bare floor beyond also read as a line's end: search regardless.
     config = unlimited_config(steering_law=steering_law, line_memory_s=0.0,
-                              lost_line_behaviour='search', search_angular_speed_radps=1.25)
+                              lost_line_behaviour='search', search_angular_speed_radps=1.25,
+                              stop_at_line_end=False)
     controller, time_s = tracking_controller(config, detection, floor_xy_m)
     for frame in drive(controller, nothing_seen(), None, 5, start_s=time_s + FRAME_PERIOD_S):
         assert frame == Frame(VelocityCommand(0.0, pytest.approx(side * 1.25)), 'lost')
@@ -934,8 +939,10 @@ def test_never_drives_forward_while_the_line_is_lost(steering_law, lost_line_beh
         time_s += 20 * FRAME_PERIOD_S
         frames = drive(controller, nothing_seen(), None, 20, start_s=time_s)
         time_s += 20 * FRAME_PERIOD_S
-        # Coasting through the 0.18 s memory, then lost, never forward again.
-        assert [frame.state for frame in frames] == ['coasting'] * 3 + ['lost'] * 17
+        # Coasting through the 0.18 s memory, then lost (or stopped at the end of a line seen
+        # ending), never forward again.
+        after_memory = 'line end' if line_ends_in_view(detection) else 'lost'
+        assert [frame.state for frame in frames] == ['coasting'] * 3 + [after_memory] * 17
         assert all(frame.command.linear_mps == 0.0 for frame in frames[3:])
 
 
@@ -987,3 +994,66 @@ def test_controller_keeps_its_config():
 
 def test_stop_command_is_zero():
     assert LineFollowingController.stop_command() == VelocityCommand(0.0, 0.0)
+
+
+# A line that ends.
+
+def test_a_line_running_out_of_the_top_of_the_view_does_not_end_in_view():
+    assert not line_ends_in_view(seen())
+
+
+def test_a_line_seen_only_in_near_bands_with_bare_floor_beyond_ends_in_view():
+    assert line_ends_in_view(seen(seen_count=2))
+
+
+def test_a_line_with_line_coloured_pixels_beyond_does_not_end_in_view():
+    # The far bands hold paint the detector did not take for the line (a corner's other leg).
+    near = seen(seen_count=2)
+    bands = near.bands[:2] + tuple(band._replace(area_px=LINE_AREA_PX) for band in near.bands[2:])
+    assert not line_ends_in_view(Detection(bands, IMAGE_WIDTH_PX, IMAGE_HEIGHT_PX,
+                                           near.confidence))
+
+
+def test_no_line_does_not_end_in_view():
+    assert not line_ends_in_view(nothing_seen())
+
+
+@pytest.mark.parametrize('steering_law', STEERING_LAWS)
+def test_stops_without_turning_at_a_line_it_saw_end(steering_law):
+    config = ControllerConfig(steering_law=steering_law, line_memory_s=0.1)
+    controller, time_s = tracking_controller(config, seen(0.2), circle_points(0.8, RIGHT))
+    # The end comes into view: fewer and fewer bands see the line, bare floor beyond.
+    for seen_count in range(BAND_COUNT - 1, 0, -1):
+        time_s += FRAME_PERIOD_S
+        controller.update(seen(seen_count=seen_count), time_s,
+                          STRAIGHT_AHEAD_M[:seen_count])
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + FRAME_PERIOD_S)
+    # It coasts through the line memory, then stands still at the end: a zero command.
+    assert [frame.state for frame in frames[:2]] == ['coasting'] * 2
+    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end') for frame in frames[2:])
+
+
+def test_searches_at_a_line_end_when_told_not_to_stop_there():
+    config = ControllerConfig(line_memory_s=0.0, stop_at_line_end=False)
+    controller, time_s = tracking_controller(config, seen(-0.2), circle_points(0.8, LEFT))
+    controller.update(seen(seen_count=1), time_s + FRAME_PERIOD_S, STRAIGHT_AHEAD_M[:1])
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + 2 * FRAME_PERIOD_S)
+    assert frames[-1] == Frame(VelocityCommand(0.0, config.search_angular_speed_radps), 'lost')
+
+
+def test_follows_the_line_again_when_it_comes_back_after_a_line_end():
+    config = unlimited_config(line_memory_s=0.0)
+    controller, time_s = tracking_controller(config)
+    controller.update(seen(seen_count=1), time_s + FRAME_PERIOD_S, STRAIGHT_AHEAD_M[:1])
+    drive(controller, nothing_seen(), None, 5, start_s=time_s + 2 * FRAME_PERIOD_S)
+    assert controller.state == 'line end'
+    frames = drive(controller, seen(), STRAIGHT_AHEAD_M, 3, start_s=time_s + 1.0)
+    assert [frame.state for frame in frames] == ['acquiring', 'tracking', 'tracking']
+    assert frames[-1].command.linear_mps > 0.0
+
+
+def test_stop_at_line_end_must_be_a_boolean():
+    with pytest.raises(TypeError, match='stop_at_line_end'):
+        ControllerConfig(stop_at_line_end=1)

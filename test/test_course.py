@@ -959,3 +959,49 @@ def test_a_short_cut_across_the_book_loop_earns_no_lap(book):
     # What was driven along the line, plus a little where the cut left it at an angle.
     driven_along_line_m = 2.0 + book.length_m + 0.5 - 9.8
     assert driven_along_line_m <= tracker.progress_m < driven_along_line_m + across_m / 2.0
+
+
+# A line that ends: paint over an arc interval only.
+
+@pytest.mark.parametrize('arc_m, expected_m', [
+    (0.0, 1.0), (2.5, 1.0), (3.0, 0.5), (3.5, 0.0), (4.0, -0.5), (10.0, -6.5),
+    (19.5, 0.5), (19.0, 0.0), (18.5, -0.5), (-0.5, 0.5),
+])
+def test_painted_interval_signed_distance_is_positive_on_paint_and_negative_beyond(
+        arc_m, expected_m):
+    # 20 m loop painted from 1 m behind the start to 3.5 m after it.
+    course = straight_sided_course(painted_interval_m=(-1.0, 3.5))
+    assert course.dash_signed_distance_m(arc_m) == pytest.approx(expected_m, abs=1e-9)
+
+
+def test_painted_interval_texture_ends_square_and_leaves_the_rest_bare():
+    size_px = 1000  # 100 px per metre
+    course = straight_sided_course(painted_interval_m=(-1.0, 2.5))
+    texture_rgb = course.draw_texture(size_px)
+    # The east side runs north from (2, 0): paint up to y = 2.5, bare beyond and elsewhere.
+    for y_m in (-0.9, 0.0, 1.0, 2.45):
+        assert texture_at(course, texture_rgb, 2.0, y_m) == LINE_RGB
+    for x_m, y_m in ((2.0, 2.55), (2.0, 2.9), (0.0, 3.0), (-2.0, 0.0), (2.0, -1.1)):
+        assert texture_at(course, texture_rgb, x_m, y_m) == (FLOOR_GREY,) * 3
+
+
+def test_painted_interval_is_kept_by_replace_and_scored_on_the_whole_loop():
+    course = straight_sided_course(painted_interval_m=(-1.0, 2.5))
+    assert course.replace(name='other').painted_interval_m == (-1.0, 2.5)
+    assert course.replace(painted_interval_m=None).painted_interval_m is None
+    # The bare part of the loop is still the centre line the scoring measures against.
+    assert course.nearest(-2.0, 0.0)[0] == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize('painted_interval_m, message', [
+    ((0.5, 2.0), 'hold the start'),
+    ((-1.0, 0.0), 'hold the start'),
+    ((-1.0, 19.5), 'shorter than the loop'),
+    ((-1.0, math.nan), 'finite'),
+    (3.0, 'two arc lengths'),
+    ((1.0, 2.0, 3.0), 'two arc lengths'),
+])
+def test_painted_interval_rejects_intervals_that_are_not_part_of_the_loop_at_the_start(
+        painted_interval_m, message):
+    with pytest.raises(ValueError, match=message):
+        straight_sided_course(painted_interval_m=painted_interval_m)

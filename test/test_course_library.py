@@ -104,7 +104,8 @@ def drive_centre_line(course, laps, offset_m=0.0, speed_m_s=0.5):
 
 def test_the_library_has_the_documented_courses():
     assert set(COURSES) == {'book_loop', 'square_corners', 's_bends', 'dashed', 'figure_eight',
-                            'distractor'}
+                            'distractor', 'hairpins', 'sharp_corners', 't_junction',
+                            'line_end'}
 
 
 @pytest.mark.parametrize('name', COURSE_NAMES)
@@ -400,3 +401,75 @@ def test_turtle_path_rejects_paths_that_do_not_close(segments, message):
 def test_turtle_pieces_reject_invalid_sizes(make, message):
     with pytest.raises(ValueError, match=message):
         make()
+
+
+# --- hairpins ------------------------------------------------------------------------------------
+
+def test_hairpins_have_the_radius_of_issue_14(courses):
+    assert courses['hairpins'].min_radius_of_curvature_m() == pytest.approx(0.15, abs=0.005)
+
+
+def test_hairpins_turn_back_two_each_way(courses):
+    course = courses['hairpins']
+    arcs_m = np.arange(0.0, course.length_m, ARC_STEP_M)
+    # A hairpin of radius 0.15 m turns 180 degrees in 0.47 m of line; the 0.3 m square turns
+    # beside it turn away, so a 0.5 m span sees the hairpin alone.
+    turn_rad = turn_over_rad(course, arcs_m, 0.5)
+    is_hairpin = np.abs(turn_rad) > math.radians(170.0)
+    starts = np.flatnonzero(is_hairpin & ~np.roll(is_hairpin, 1))
+    signs = [np.sign(turn_rad[start]) for start in starts]
+    assert sorted(signs) == [-1, -1, 1, 1]
+
+
+# --- sharp_corners -------------------------------------------------------------------------------
+
+def test_sharp_corners_turn_120_degrees_four_left_one_right(courses):
+    course = courses['sharp_corners']
+    arcs_m = np.arange(0.0, course.length_m, ARC_STEP_M)
+    turn_rad = turn_over_rad(course, arcs_m, 0.06)
+    is_corner = np.abs(turn_rad) > math.radians(60.0)
+    starts = np.flatnonzero(is_corner & ~np.roll(is_corner, 1))
+    corner_turns_deg = [math.degrees(turn_rad[start:start + 10][
+        np.argmax(np.abs(turn_rad[start:start + 10]))]) for start in starts]
+    assert sorted(corner_turns_deg) == pytest.approx([-120.0] + [120.0] * 4, abs=1.0)
+
+
+# --- t_junction ----------------------------------------------------------------------------------
+
+def test_t_junction_is_the_book_loop_with_stubs_square_to_it_and_touching_it(courses):
+    course = courses['t_junction']
+    assert np.array_equal(course.centre_line_xy, courses['book_loop'].centre_line_xy)
+    assert len(course.distractors) == 3
+    for stub in course.distractors:
+        # Across the line (the stub's width runs along its own length from the line outwards).
+        distance_m, arc_m = course.nearest(stub.x_m, stub.y_m)
+        heading_rad = course.point_at(arc_m)[2]
+        assert stub.length_m == pytest.approx(course.line_width_m)
+        assert math.cos(stub.yaw_rad - heading_rad) == pytest.approx(1.0, abs=1e-6)
+        assert distance_m == pytest.approx(stub.width_m / 2.0, abs=0.01)
+
+
+def test_t_junction_stubs_join_the_painted_line(courses, textures):
+    course, texture_rgb = courses['t_junction'], textures['t_junction']
+    for stub in course.distractors:
+        _, arc_m = course.nearest(stub.x_m, stub.y_m)
+        x_m, y_m, _ = course.point_at(arc_m)
+        # Every point from the line's centre to the stub's tip is painted.
+        for share in np.linspace(0.0, 0.9, 10):
+            assert texture_at(course, texture_rgb, x_m + 2.0 * share * (stub.x_m - x_m),
+                              y_m + 2.0 * share * (stub.y_m - y_m)) == LINE_RGB
+
+
+# --- line_end ------------------------------------------------------------------------------------
+
+def test_line_end_paints_from_behind_the_start_to_its_end_then_bare_floor(courses, textures):
+    course, texture_rgb = courses['line_end'], textures['line_end']
+    begin_m, end_m = course.painted_interval_m
+    assert (begin_m, end_m) == pytest.approx((-1.0, 1.5 + math.pi / 2.0 + 2.0))
+    for arc_m in np.arange(begin_m + 0.05, end_m - 0.05, 0.1):
+        assert texture_at(course, texture_rgb, *course.point_at(arc_m)[:2]) == LINE_RGB
+    # Beyond the end, the floor straight ahead stays bare for more than the camera sees.
+    x_m, y_m, heading_rad = course.point_at(end_m)
+    for ahead_m in np.arange(0.05, 3.0, 0.05):
+        assert texture_at(course, texture_rgb, x_m + ahead_m * math.cos(heading_rad),
+                          y_m + ahead_m * math.sin(heading_rad)) == (FLOOR_GREY,) * 3

@@ -24,6 +24,7 @@ LIBRARY_KEYS = {
     'catkin_pkg': 'python3-catkin-pkg-modules',
     'cv2': 'python3-opencv',
     'hypothesis': 'python3-hypothesis',
+    'matplotlib': 'python3-matplotlib',
     'mcap': 'mcap-ros2-support',
     'mcap_ros2': 'mcap-ros2-support',
     'mujoco': 'python3-mujoco-pip',
@@ -42,6 +43,7 @@ TOOL_KEYS = {
 # key such as sensor_msgs is the community wheel ros-sensor-msgs.
 LIBRARY_REQUIREMENTS = {
     'mcap-ros2-support': 'mcap-ros2-support',
+    'python3-matplotlib': 'matplotlib',
     'python3-mujoco-pip': 'mujoco',
     'python3-numpy': 'numpy',
     'python3-opencv': 'opencv-python-headless',

@@ -414,7 +414,50 @@ def test_a_second_launcher_on_the_same_domain_without_a_namespace_refuses_with_t
         refusal = [line for line in output.splitlines() if 'Cannot run' in line]
         assert len(refusal) == 1, output
         assert '/clock' in refusal[0] and '__ns:=' in refusal[0] and '--domain-id' in refusal[0]
+        assert '--robots N' in refusal[0]
     finally:
         first.send_signal(signal.SIGINT)
         first.communicate(timeout=60)
     assert first.returncode == 0
+
+
+def test_followbot_races_two_configurations_on_one_course_and_scores_each(ros_context):
+    # One simulator, two followers under /r1 and /r2 with their configurations, in lockstep:
+    # each robot advances along the line at its own configuration's speed, and an independent
+    # listener sees each robot's score under its own namespace.
+    client = Node('race_listener', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(client)
+    score_names = set()
+    client.create_subscription(
+        DiagnosticArray, '/diagnostics',
+        lambda msg: score_names.update((status.name, status.hardware_id)
+                                       for status in msg.status), 10)
+    launcher = run_launcher(run_domain_id(), '--robots', '2', '--configs', 'followbot,book',
+                            '--duration', '10', '--real-time-factor', '0', '--lockstep',
+                            '--report-period', '5')
+    try:
+        while launcher.poll() is None:
+            executor.spin_once(timeout_sec=0.1)
+        output = launcher.stdout.read()
+    finally:
+        kill_leftovers(launcher)
+        executor.shutdown()
+        client.destroy_node()
+    assert launcher.returncode == 0, output
+    assert '2 robots (r1 (followbot), r2 (book))' in output.splitlines()[0]
+    assert '[follower r1] ' in output and '[follower r2] ' in output
+    assert 'no cmd_vel answered' not in output, output
+    finals = {line.split(':')[0]: line for line in output.splitlines()
+              if line.startswith('[followbot] final ')}
+    assert set(finals) == {'[followbot] final r1 (followbot)', '[followbot] final r2 (book)'}
+    progress = {}
+    for label, line in finals.items():
+        assert 't=  10.0 s' in line, output
+        progress[label] = float(line.split('next lap')[1].split('%')[0])
+    # The book's follower drives at 0.2 m/s (2 m, 9 % of the 21.4 m loop, in 10 s); followbot's
+    # own is faster. Each robot is scored on its own path.
+    assert 5 <= progress['[followbot] final r2 (book)'] <= 12, output
+    assert progress['[followbot] final r1 (followbot)'] > progress['[followbot] final r2 (book)']
+    assert {('/r1/followbot_sim: course score', '/r1/followbot_sim'),
+            ('/r2/followbot_sim: course score', '/r2/followbot_sim')} <= score_names

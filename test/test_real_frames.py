@@ -19,7 +19,8 @@ MAX_FALSE_SHARE = 0.01
 # Whose frames each colour's targets are held to. Yellow: every frame with a yellow line. White
 # and black: the tracks made of a single line of that tape, the follower's job. The white edge
 # lines of the lane tracks (Duckietown, AutoRace) are scored by the benchmark's table, not held
-# to the targets: they bound a lane, beside a yellow line, and are not what a line follower follows.
+# to the targets: they bound a lane, beside a yellow line, and are not what a line follower
+# follows.
 TARGET_SOURCES = {'yellow': None, 'white': ('ev3-whitelane',), 'black': ('kejdi-blacktape',)}
 # Frames no robot camera takes, scored on their own (expected to fail, and reported).
 NOT_A_ROBOT_VIEW = {

@@ -172,6 +172,7 @@ def test_sim_parameters_are_typed_like_ros_arguments(text, expected):
     ('course:=s_bends', 'set by the scorecard'),
     ('image_width_px:=wide', 'takes an integer'),
     ('camera_rate_hz:=500.0', 'must be in 1..60'),
+    ('robots:=2', 'followbot --robots N'),
 ])
 def test_bad_sim_parameters_are_refused(text, message):
     with pytest.raises(ValueError, match=message):

@@ -114,3 +114,14 @@ def test_keep_large_buffers_tunes_glibc(monkeypatch):
 def test_keep_large_buffers_leaves_a_users_malloc_settings_alone(monkeypatch):
     monkeypatch.setenv('MALLOC_MMAP_THRESHOLD_', '1048576')
     assert transport.keep_large_buffers() is False
+
+
+def test_the_package_profile_exported_by_the_launcher_is_named_as_the_packages(monkeypatch,
+                                                                              tmp_path):
+    for variable in (*transport.USER_CONFIGURATION_VARIABLES, 'RMW_IMPLEMENTATION'):
+        monkeypatch.delenv(variable, raising=False)
+    path = str(transport.fastdds_profile_path())
+    monkeypatch.setenv(transport.FASTDDS_PROFILE_VARIABLE, path)
+    monkeypatch.chdir(tmp_path)
+    assert transport.use_package_profile().startswith(
+        f"Fast DDS configuration: followbot's profile {path}")
