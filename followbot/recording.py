@@ -33,6 +33,7 @@ import sys
 import time
 from typing import Iterable, Iterator, NamedTuple
 
+from mcap import stream_reader
 from mcap.exceptions import McapError
 from mcap.reader import make_reader, NonSeekingReader
 from mcap.writer import CompressionType, Writer
@@ -40,7 +41,6 @@ from mcap_ros2 import __version__ as MCAP_ROS2_VERSION
 # The encoder mcap-ros2-support's own Writer uses; the pinned version keeps this name.
 from mcap_ros2._dynamic import serialize_dynamic
 import yaml
-from zstandard import ZstdError
 
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
@@ -58,8 +58,10 @@ DEFAULT_ROS_DISTRO = 'jazzy'
 DEFINITION_DELIMITER = '=' * 80
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 # What the mcap library raises on a file that ends early or holds a broken record; a damaged
-# compressed chunk makes lz4 raise RuntimeError and zstandard its ZstdError.
-READ_ERRORS = (McapError, ValueError, EOFError, OSError, RuntimeError, ZstdError)
+# compressed chunk makes lz4 raise RuntimeError and zstandard its ZstdError (taken from the
+# module mcap decompresses with: zstandard comes with mcap, it is no dependency of ours).
+ZSTD_ERRORS = (stream_reader.zstandard.ZstdError,) if stream_reader.zstandard else ()
+READ_ERRORS = (McapError, ValueError, EOFError, OSError, RuntimeError, *ZSTD_ERRORS)
 PRIMITIVE_TYPES = frozenset((
     'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
     'uint32', 'int64', 'uint64', 'string', 'wstring'))
