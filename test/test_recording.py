@@ -395,3 +395,19 @@ def test_reading_what_is_no_recording_is_refused(tmp_path, content, error):
         path.write_bytes(content)
     with pytest.raises(RecordingError, match=error):
         list(read_messages(path))
+
+
+@pytest.mark.parametrize('compression', ['lz4', 'zstd'])
+def test_a_damaged_compressed_chunk_is_a_damaged_recording(tmp_path, compression):
+    path = tmp_path / 'run.mcap'
+    write_all(path, compression=compression)
+    with open(path, 'rb') as stream:
+        chunk_offset = make_reader(stream).get_summary().chunk_indexes[0].chunk_start_offset
+    data = bytearray(path.read_bytes())
+    # Chunk record: opcode, length, start and end time, uncompressed size and CRC, then the
+    # compression's name (length-prefixed) and the compressed records' length: then the data.
+    data_offset = chunk_offset + 1 + 8 + 8 + 8 + 8 + 4 + 4 + len(compression) + 8
+    data[data_offset:data_offset + 16] = b'\xff' * 16
+    path.write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match='is damaged'):
+        list(read_messages(path))
