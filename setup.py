@@ -30,6 +30,7 @@ setup(
         'console_scripts': [
             'follower = followbot.follower_node:main',
             'calibrate = followbot.calibrate:main',
+            'replay = followbot.replay:main',
             'sim = followbot_sim.sim_node:main',
             'followbot = followbot_sim.launcher:main',
             'scorecard = followbot_sim.scorecard:main',

@@ -25,10 +25,12 @@ from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_na
                                    ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
                                    StopSignals)
 from followbot.package_files import share_file
-from followbot.transport import environment_with_profile, keep_large_buffers
+from followbot.recording import RecordingError
+from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim import soak
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
+from followbot_sim.run_recording import add_record_options, RunRecording
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.video import add_video_node, check_video_path, VideoPathError
@@ -121,6 +123,7 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              f'{soak.RSS_GROWTH_LIMIT_KB / 1024:g} MiB after the warm-up '
                              f'(the first {100 * soak.WARM_UP_FRACTION:g} %% of the run, at least '
                              f'{soak.WARM_UP_MIN_S:g} s)')
+    add_record_options(parser)
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments
     if options.video_period_s is not None and not options.video_period_s > 0:
@@ -144,6 +147,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     elif options.configs and len(options.configs) != options.robots:
         parser.error(f'--configs names {len(options.configs)} configurations for '
                      f'{options.robots} robots: give one per robot, or one for all')
+    if options.record and options.robots > 1:
+        parser.error('--record records one robot: run several robots without it, or record '
+                     'each in a launcher of its own under its namespace (-r __ns:=/robot1)')
     return options
 
 
@@ -418,6 +424,9 @@ def main(argv=None) -> int:
     environment, profile = environment_with_profile(
         dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0'))
     keep_large_buffers()
+    if options.record:
+        # The recorder in this process takes every camera frame: through shared memory too.
+        use_package_profile()
     if options.domain_id is not None:
         environment['ROS_DOMAIN_ID'] = str(options.domain_id)
     # ROS reads an empty ROS_DOMAIN_ID as the default domain, 0.
@@ -488,6 +497,19 @@ def main(argv=None) -> int:
         monitor.destroy_node()
         rclpy.try_shutdown(context=context)
         return 2
+    recording = None
+    if options.record:
+        try:
+            recording = RunRecording(options.record, simulator_name, options.record_compressed,
+                                     clock_topic, context=context)
+        except RecordingError as error:
+            print(f'[followbot] {error}', file=sys.stderr, flush=True)
+            executor.shutdown()
+            monitor.destroy_node()
+            rclpy.try_shutdown(context=context)
+            return 2
+        executor.add_node(recording.recorder)
+        simulator_parameters['start_paused'] = 'true'
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     followers = [ChildProcess('follower' + (f' {name}' if name else ''), _node_command(
@@ -504,15 +526,26 @@ def main(argv=None) -> int:
                 next_sample_s += options.soak_period
                 soak_samples.append(_soak_sample(
                     time.monotonic() - started_s, children, monitor.summaries))
+            if recording is not None:
+                started = recording.started
+                if recording.poll() and not started:
+                    print('[followbot] Recorder hears every topic: the simulation starts.',
+                          flush=True)
+                elif report := recording.wait_report():
+                    print(f'[followbot] {report}', flush=True)
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
         exit_codes = {child.name: child.stop() for child in (*followers, simulator)}
+        if recording is not None:
+            recording.drain(executor)
         # Let the last score and pictures arrive, then leave.
         deadline = time.monotonic() + MONITOR_SPIN_S * 5
         while time.monotonic() < deadline:
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
         executor.shutdown()
+        if recording is not None:
+            print(f'[followbot] recorded {recording.close()}', flush=True)
         monitor.destroy_node()
         rclpy.try_shutdown(context=context)
     for label, summary in monitor.summaries.items():

@@ -10,11 +10,9 @@ send time. Where tf2_msgs is not importable, ``/tf`` can still be recorded from 
 are then encoded from TFMessage's definition.
 """
 
-import importlib
-
-from followbot_sim.recording import (canonical_type_name, DEFAULT_COMPRESSION, OfferedQos,
-                                     RecordingError, RecordingWriter, split_type_name,
-                                     STATIC_TF_QOS, TF_MESSAGE_TYPE)
+from followbot.recording import (canonical_type_name, DEFAULT_COMPRESSION, header_stamp_ns,
+                                 import_message_class, OfferedQos, RecordingError,
+                                 RecordingWriter, STATIC_TF_QOS, TF_MESSAGE_TYPE)
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
@@ -27,23 +25,17 @@ DISCOVERY_PERIOD_S = 0.1
 # Messages a subscription keeps while the recorder is busy writing: a burst of 5 s of camera at
 # 20 Hz. Memory is only used when the recorder falls behind (at most ~90 MB for 640x480 bgr8).
 QUEUE_DEPTH = 100
+# Small messages come many times more often (/clock at 100 Hz of simulated time, several times
+# faster than real time in lockstep): their subscriptions keep 20 s of /clock, a few MB at most,
+# so a recorder that the machine leaves unscheduled for a while catches up without a loss.
+SMALL_MESSAGE_QUEUE_DEPTH = 2000
+# Types whose messages are large, kept QUEUE_DEPTH deep; the others SMALL_MESSAGE_QUEUE_DEPTH.
+LARGE_MESSAGE_TYPES = frozenset(('sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage',
+                                 'sensor_msgs/msg/PointCloud2'))
 TF_TOPIC = '/tf'
+# Stands for the class of a topic recorded with whatever type its publishers use.
+AS_PUBLISHED = object()
 TF_STATIC_TOPIC = '/tf_static'
-
-
-def import_message_class(type_name: str):
-    """
-    Return the Python class of a message type, or None when its package is not importable.
-
-    :param type_name: such as ``sensor_msgs/msg/Image``.
-    :return: the class, such as ``sensor_msgs.msg.Image``, or None.
-    :raises RecordingError: if the name is not a message type name.
-    """
-    package, name = split_type_name(type_name)
-    try:
-        return getattr(importlib.import_module(f'{package}.msg'), name)
-    except (ImportError, AttributeError):
-        return None
 
 
 def offered_qos(profile: QoSProfile) -> OfferedQos:
@@ -63,7 +55,7 @@ def offered_qos(profile: QoSProfile) -> OfferedQos:
         avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions)
 
 
-def subscription_qos(offers: list) -> QoSProfile:
+def subscription_qos(offers: list, depth: int = QUEUE_DEPTH) -> QoSProfile:
     """
     Return the QoS that receives from every publisher with the best delivery they all offer.
 
@@ -72,6 +64,7 @@ def subscription_qos(offers: list) -> QoSProfile:
     so latched messages such as ``/tf_static`` arrive too. This is rosbag2's rule.
 
     :param offers: the publishers' QoS profiles.
+    :param depth: messages the subscription keeps while the recorder is busy.
     :return: the subscription's profile.
     """
     reliable = bool(offers) and all(
@@ -79,7 +72,7 @@ def subscription_qos(offers: list) -> QoSProfile:
     latched = bool(offers) and all(
         offer.durability == DurabilityPolicy.TRANSIENT_LOCAL for offer in offers)
     return QoSProfile(
-        depth=QUEUE_DEPTH,
+        depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
@@ -106,26 +99,31 @@ class Recorder(Node):
 
     def __init__(self, path, topics, compression: str = DEFAULT_COMPRESSION,
                  tf_odometry_topic: str | None = None, static_transforms=(),
-                 node_name: str = RECORDER_NODE, **kwargs):
+                 node_name: str = RECORDER_NODE, progress_topic: str | None = None, **kwargs):
         """
         Create the recording and subscribe to each topic once it has a publisher.
 
         :param path: the ``.mcap`` file to write; an existing file is replaced.
         :param topics: (topic, message type name) pairs, such as
             ``('camera/rgb/image_raw', 'sensor_msgs/msg/Image')``; relative names are resolved
-            in the node's namespace.
+            in the node's namespace; a type of None records the type the publishers use.
         :param compression: chunk compression: 'lz4', 'zstd' or 'none'.
         :param tf_odometry_topic: where tf2_msgs is not importable, record ``/tf`` from this
             odometry topic (its header frame to its child frame).
         :param static_transforms: where tf2_msgs is not importable, the TransformStamped
             messages to record on ``/tf_static``, once, with the first message recorded.
         :param node_name: the node's name.
+        :param progress_topic: a recorded topic whose messages start with a time (``/clock``,
+            or a header): :attr:`progress_ns` is the time in the last one written.
         :param kwargs: passed to ``Node`` (``context=``, ``parameter_overrides=``, ...).
         :raises RecordingError: if a type name is invalid or its package is not importable,
             or the file cannot be created.
         """
         classes = []
         for topic, type_name in topics:
+            if type_name is None:
+                classes.append((topic, None, AS_PUBLISHED))
+                continue
             full_type = canonical_type_name(type_name)
             message_class = import_message_class(full_type)
             if message_class is None and full_type != TF_MESSAGE_TYPE:
@@ -134,6 +132,9 @@ class Recorder(Node):
             classes.append((topic, full_type, message_class))
         super().__init__(node_name, **kwargs)
         self.failures = []
+        self.progress_ns = None
+        self._progress_topic = None if progress_topic is None else self.resolve_topic_name(
+            progress_topic)
         self._pending = {}
         fallback_tf = set()
         for topic, full_type, message_class in classes:
@@ -152,7 +153,7 @@ class Recorder(Node):
         if TF_TOPIC in fallback_tf and tf_odometry_topic:
             self._writer.add_topic(TF_TOPIC, TF_MESSAGE_TYPE, [OfferedQos(depth=QUEUE_DEPTH)])
             self.create_subscription(Odometry, tf_odometry_topic, self._odometry_callback,
-                                     QUEUE_DEPTH)
+                                     SMALL_MESSAGE_QUEUE_DEPTH)
         if self._static_transforms:
             self._writer.add_topic(TF_STATIC_TOPIC, TF_MESSAGE_TYPE, [STATIC_TF_QOS])
         # Wall clock: under simulated time a paused /clock must not stop the discovery.
@@ -171,6 +172,17 @@ class Recorder(Node):
         """Return the topics that have no publisher yet, so are not recorded yet."""
         return sorted(self._pending)
 
+    @property
+    def matched(self) -> bool:
+        """
+        Tell whether every topic is subscribed and each subscription hears its publishers.
+
+        A publisher sends only to the subscriptions it has matched: a run that starts before
+        this is true may lose its first messages from the recording.
+        """
+        return not self._pending and all(
+            subscription.get_publisher_count() > 0 for subscription in self.subscriptions)
+
     def _warn_about_missing_tf(self, fallback_tf: set, tf_odometry_topic) -> None:
         if TF_TOPIC in fallback_tf and not tf_odometry_topic:
             self.get_logger().warn('tf2_msgs is not importable and no odometry topic was '
@@ -185,6 +197,14 @@ class Recorder(Node):
             if not publishers:
                 continue
             message_class, type_name = self._pending.pop(name)
+            if message_class is AS_PUBLISHED:
+                type_name = canonical_type_name(publishers[0].topic_type)
+                message_class = import_message_class(type_name)
+                if message_class is None:
+                    reason = f'the Python package of {type_name} is not importable'
+                    self.failures.append(f'{name}: {reason}')
+                    self.get_logger().error(f'Not recorded: {name}, {reason}.')
+                    continue
             offers = [publisher.qos_profile for publisher in publishers]
             type_hash = str(publishers[0].topic_type_hash)
             self._writer.add_topic(name, type_name, [offered_qos(offer) for offer in offers],
@@ -192,7 +212,8 @@ class Recorder(Node):
             self.create_subscription(
                 message_class, name,
                 lambda data, info, topic=name: self._message_callback(topic, data, info),
-                subscription_qos(offers), raw=True)
+                subscription_qos(offers, QUEUE_DEPTH if type_name in LARGE_MESSAGE_TYPES
+                                 else SMALL_MESSAGE_QUEUE_DEPTH), raw=True)
         if not self._pending:
             self._discovery_timer.cancel()
 
@@ -203,6 +224,8 @@ class Recorder(Node):
 
     def _message_callback(self, topic: str, data: bytes, info: dict) -> None:
         log_time_ns = self._log_time_ns(info)
+        if topic == self._progress_topic:
+            self.progress_ns = header_stamp_ns(data)
         self._write_static_transforms(log_time_ns)
         self._guarded(self._writer.write, topic, data, log_time_ns,
                       publish_time_ns=info['source_timestamp'],

@@ -38,6 +38,7 @@ from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
 from followbot_sim.plots import write_plots
+from followbot_sim.run_recording import add_record_options, RunRecording
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS, SimulatorNode
 import rclpy
 from rclpy.context import Context
@@ -528,11 +529,13 @@ def _simulator_overrides(scenario: Scenario, sim_parameters) -> list:
     return [Parameter(name, value=value) for name, value in values.items()]
 
 
-def _wait_until_connected(executor, simulator, follower, stop_requested) -> None:
-    """Spin until the follower hears the camera and the simulator hears the follower."""
+def _wait_until_connected(executor, simulator, follower, stop_requested,
+                          recording: RunRecording | None = None) -> None:
+    """Spin until the follower hears the camera, the simulator the follower, a recorder all."""
     deadline_s = time.monotonic() + CONNECT_TIMEOUT_S
     while not (simulator.count_subscribers(IMAGE_TOPIC) > 0
-               and follower.count_subscribers(CMD_VEL_TOPIC) > 0):
+               and follower.count_subscribers(CMD_VEL_TOPIC) > 0
+               and (recording is None or recording.recorder.matched)):
         if stop_requested.is_set():
             return  # The run loop ends the run as interrupted.
         if time.monotonic() > deadline_s:
@@ -562,7 +565,8 @@ def stopped_at_line_end(world, tracker) -> bool:
 def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
                  time_limit_s: float | None = None,
                  stuck_after_s: float = DEFAULT_STUCK_AFTER_S,
-                 stop_requested: StopSignals | None = None) -> dict:
+                 stop_requested: StopSignals | None = None, record_path: str | None = None,
+                 record_compressed: bool = False) -> dict:
     """
     Run the simulator and the follower on a scenario until a lap, the time limit or a stop.
 
@@ -576,13 +580,17 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
     :param stuck_after_s: simulated seconds without progress that end the run as stuck.
     :param stop_requested: a StopSignals, or anything with ``is_set()``, that ends the run as
         interrupted when set.
+    :param record_path: record the run into this MCAP file; None records nothing.
+    :param record_compressed: record the camera as JPEG.
     :return: ``end_reason``, ``time_limit_s``, ``metrics`` (see :func:`run_metrics`),
         ``lap_tracker`` and ``line_statistics`` (the raw figures), ``wall_s`` (the spin
-        loop), ``simulated_per_wall`` and ``camera``.
+        loop), ``simulated_per_wall``, ``camera`` and, when recorded, ``recording`` (a line
+        saying what the file holds).
     :raises RuntimeError: if the nodes do not find each other.
     """
     stop_requested = stop_requested or StopSignals()
     nodes = []
+    recording = None
     executor = SingleThreadedExecutor(context=context)
     try:
         simulator = SimulatorNode(context=context, parameter_overrides=_simulator_overrides(
@@ -595,7 +603,11 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
         # Simulated time starts only once both ends are connected: no lap time is spent
         # waiting for discovery with the robot standing still.
         executor.add_node(follower)
-        _wait_until_connected(executor, simulator, follower, stop_requested)
+        if record_path is not None:
+            # The simulator is not spun before the recorder hears every topic: no frame lost.
+            recording = RunRecording(record_path, None, record_compressed, context=context)
+            executor.add_node(recording.recorder)
+        _wait_until_connected(executor, simulator, follower, stop_requested, recording)
         executor.add_node(simulator)
         world, tracker = simulator.world, simulator.lap_tracker
         time_limit_s = time_limit_s or default_time_limit_s(world.course.length_m)
@@ -604,6 +616,9 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
         start_s = time.monotonic()
         while True:
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+            if recording is not None and recording.holding != recording.should_hold():
+                # Time stands still (the simulator is not spun) while the recorder catches up.
+                (executor.remove_node if recording.holding else executor.add_node)(simulator)
             samples.take(world, tracker)
             if tracker.laps_completed >= 1:
                 end_reason = END_LAP
@@ -617,6 +632,13 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
                 continue
             break
         wall_s = time.monotonic() - start_s
+        recorded = {}
+        if recording is not None:
+            # Time stands still while the recorder writes what it still holds.
+            if not recording.holding:
+                executor.remove_node(simulator)
+            recording.drain(executor)
+            recorded['recording'], recording = recording.close(), None
         width_px, height_px = world.image_size_px
         summary = tracker.summary()
         line_statistics = dict(follower.line_statistics)
@@ -632,8 +654,11 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
             'camera': {'width_px': width_px, 'height_px': height_px,
                        'rate_hz': simulator.get_parameter('camera_rate_hz').value,
                        'noise_stddev_levels': world.camera_noise_stddev},
+            **recorded,
         }
     finally:
+        if recording is not None:
+            recording.close()
         executor.shutdown()
         for node in reversed(nodes):
             node.destroy_node()
@@ -667,7 +692,8 @@ def run_one(task: dict) -> dict:
                    signal_handler_options=SignalHandlerOptions.NO)
         record.update(run_scenario(
             context, Scenario(**task['scenario']), task['sim_parameters'],
-            task['time_limit_s'], task['stuck_after_s'], _worker['stop']))
+            task['time_limit_s'], task['stuck_after_s'], _worker['stop'],
+            task['record_path'], task['record_compressed']))
         record['setup_wall_s'] = time.monotonic() - start_s - record['wall_s']
     except Exception as error:  # Any failure is this run's result, reported in its row.
         message = ' '.join(str(error).split()) or 'no message'
@@ -749,6 +775,7 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'distance from the line and the speed along the course')
     parser.add_argument('--node-log-level', choices=NODE_LOG_LEVELS, default='error',
                         help="the nodes' ROS log level (default: error)")
+    add_record_options(parser, one_file_per_run=True)
     refuse_ros_arguments(parser, argv, 'it starts its own nodes; give follower parameters as a '
                          'configuration (--params-file FILE) and simulator ones with --sim-param.')
     options = parser.parse_args(argv)
@@ -780,7 +807,10 @@ def _tasks(options: argparse.Namespace) -> list:
     return [{'configuration': configuration.name, 'params_file': str(configuration.params_file),
              'scenario': dataclasses.asdict(scenario), 'sim_parameters': options.sim_parameters,
              'time_limit_s': options.time_limit_s, 'stuck_after_s': options.stuck_after_s,
-             'node_log_level': options.node_log_level}
+             'node_log_level': options.node_log_level,
+             'record_path': None if options.record is None else str(
+                 Path(options.record) / f'{scenario.name}-{configuration.name}.mcap'),
+             'record_compressed': options.record_compressed}
             for scenario in options.scenarios for configuration in options.configurations]
 
 
@@ -873,6 +903,13 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     options = parse_arguments(argv)
     tasks = _tasks(options)
+    if options.record is not None:
+        try:
+            Path(options.record).mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            print(f'[{PROGRAM}] Cannot record into {options.record}: '
+                  f'{error.strerror or error}.', file=sys.stderr, flush=True)
+            return 2
     print(f"[{PROGRAM}] {_count(len(tasks), 'run')} "
           f"({_count(len(options.configurations), 'configuration')} x "
           f"{_count(len(options.scenarios), 'scenario')}) on "
@@ -885,6 +922,9 @@ def main(argv=None) -> int:
         print(f'[{PROGRAM}] interrupted: no table, no JSON.', file=sys.stderr, flush=True)
         return 130
     wall_s = time.monotonic() - start_s
+    for record in records:
+        if record.get('recording'):
+            print(f"[{PROGRAM}] recorded {record['recording']}", file=sys.stderr, flush=True)
     ratios = speedups(records)
     for record in records:
         record['book_lap_time_ratio'] = ratios.get((record['scenario'], record['configuration']))

@@ -41,6 +41,7 @@ from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -167,6 +168,9 @@ CMD_VEL_TYPE_CHECK_PERIOD_S = 2.0
 LOCKSTEP_PARTNER_CHECK_PERIOD_S = 0.05
 TWIST_TYPES = {False: 'geometry_msgs/msg/Twist', True: 'geometry_msgs/msg/TwistStamped'}
 WHEEL_JOINTS = (LEFT_WHEEL_JOINT, RIGHT_WHEEL_JOINT)
+# Longest the simulator waits (wall time) at exit for reliable subscribers to acknowledge what
+# it published: a lagging recorder then still gets the last frames.
+FINAL_DELIVERY_TIMEOUT_S = 3.0
 # Static transforms are latched: late subscribers (RViz, tf2 listeners) still get them.
 TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The overview draws each robot's trail in its own colour (BGR): red, blue, green, magenta...
@@ -823,7 +827,16 @@ class SimulatorNode(Node):
             header=Header(stamp=stamp, frame_id=frames.WORLD_FRAME), status=statuses))
 
     def destroy_node(self):
-        """Release the renderer's OpenGL context and the viewer, then the node."""
+        """Let reliable subscribers have every message, release the renderer, then the node."""
+        # A recorder that lags behind still gets the run's last frames and score: a process
+        # that ends takes its unacknowledged messages with it.
+        if self.context.ok():
+            deadline_s = time.monotonic() + FINAL_DELIVERY_TIMEOUT_S
+            for publisher in self.publishers:
+                remaining_s = deadline_s - time.monotonic()
+                if remaining_s <= 0.0:
+                    break
+                publisher.wait_for_all_acked(Duration(seconds=remaining_s))
         self._world.close()
         return super().destroy_node()
 

@@ -12,7 +12,7 @@ from followbot import calibrate
 from followbot.compressed_image import array_to_compressed
 from followbot.follower_node import FollowerNode
 from followbot.image_conversion import array_to_image
-from followbot_sim.recording import RecordingWriter
+from followbot.recording import RecordingWriter
 import numpy as np
 import pytest
 import rclpy

@@ -29,7 +29,7 @@ from rclpy.node import Node
 
 PACKAGE = 'followbot'
 # What ros2 run finds in lib/followbot: the console scripts of setup.py.
-EXECUTABLES = ('follower', 'sim', 'followbot', 'scorecard', 'benchmark', 'calibrate')
+EXECUTABLES = ('follower', 'sim', 'followbot', 'scorecard', 'benchmark', 'calibrate', 'replay')
 # Installed data: share/followbot/<folder> holds the checkout's files matching these patterns.
 INSTALLED_DATA = {'models': ('*.xml',), 'config': ('*.yaml', '*.xml')}
 UNDER_COLCON_TEST = 'COLCON' in os.environ

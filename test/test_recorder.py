@@ -11,8 +11,8 @@ import time
 
 from conftest import spin_until
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from followbot.recording import RecordingError
 from followbot_sim.recorder import Recorder
-from followbot_sim.recording import RecordingError
 from geometry_msgs.msg import TransformStamped, Twist
 from nav_msgs.msg import Odometry
 import numpy as np

@@ -1,5 +1,5 @@
 """
-Recordings written by followbot_sim.recording, read back by independent readers.
+Recordings written by followbot.recording, read back by independent readers.
 
 Messages are serialised by rclpy (the bytes a ``raw=True`` subscription delivers), written, and
 read back with the ``rosbags`` library (its own MCAP reader and CDR deserialiser) and with the
@@ -14,9 +14,9 @@ import subprocess
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from followbot_sim import recording
-from followbot_sim.recording import (MessageDefinitions, OfferedQos, read_messages,
-                                     RecordingError, RecordingWriter)
+from followbot import recording
+from followbot.recording import (MessageDefinitions, OfferedQos, read_messages,
+                                 RecordingError, RecordingWriter)
 from geometry_msgs.msg import TransformStamped, Twist
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -201,8 +201,9 @@ def test_read_messages_yields_serialised_messages_in_log_time_order(recording_pa
     read = list(read_messages(recording_path))
     assert [message.log_time_ns for message in read] == sorted(
         message.log_time_ns for message in read)
+    # Written without a publish time: it is the log time.
     assert read[0] == ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', 6 * SECOND_NS,
-                       serialize_message(diagnostics()))
+                       serialize_message(diagnostics()), 6 * SECOND_NS)
     assert [message.topic for message in read_messages(recording_path, ['/cmd_vel', '/tf'])] \
         == ['/cmd_vel', '/tf']
 
@@ -301,7 +302,7 @@ def test_qos_profile_is_serialised_as_rosbag2_version_9():
 
 KILLED_WRITER = """
 import os, signal, sys
-from followbot_sim.recording import RecordingWriter
+from followbot.recording import RecordingWriter
 writer = RecordingWriter(sys.argv[1], flush_period_s=0.0)
 writer.add_topic('/count', 'std_msgs/msg/UInt32')
 for count in range(int(sys.argv[2])):
@@ -393,4 +394,20 @@ def test_reading_what_is_no_recording_is_refused(tmp_path, content, error):
     if content is not None:
         path.write_bytes(content)
     with pytest.raises(RecordingError, match=error):
+        list(read_messages(path))
+
+
+@pytest.mark.parametrize('compression', ['lz4', 'zstd'])
+def test_a_damaged_compressed_chunk_is_a_damaged_recording(tmp_path, compression):
+    path = tmp_path / 'run.mcap'
+    write_all(path, compression=compression)
+    with open(path, 'rb') as stream:
+        chunk_offset = make_reader(stream).get_summary().chunk_indexes[0].chunk_start_offset
+    data = bytearray(path.read_bytes())
+    # Chunk record: opcode, length, start and end time, uncompressed size and CRC, then the
+    # compression's name (length-prefixed) and the compressed records' length: then the data.
+    data_offset = chunk_offset + 1 + 8 + 8 + 8 + 8 + 4 + 4 + len(compression) + 8
+    data[data_offset:data_offset + 16] = b'\xff' * 16
+    path.write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match='is damaged'):
         list(read_messages(path))

@@ -18,10 +18,13 @@ messages, so ``ros2 bag info``/``ros2 bag play``, the ``rosbags`` library and Fo
 The ``.msg`` files come from ``share/<package>/msg/`` of the ROS prefixes (``AMENT_PREFIX_PATH``
 and this Python's prefix, where the PyPI wheels put them). ``tf2_msgs/msg/TFMessage`` has a
 built-in definition, so ``/tf`` and ``/tf_static`` can be written, encoded from that definition,
-even where tf2_msgs is not installed. No rclpy here: the ROS side is ``recorder_node``.
+even where tf2_msgs is not installed. No rclpy here: the ROS side is
+``followbot_sim.recorder`` (recording) and ``followbot.replay`` (replaying). It sits on the robot
+side because a robot's recordings are replayed there, without the simulator.
 """
 
 import dataclasses
+import importlib
 import json
 import os
 from pathlib import Path
@@ -30,6 +33,7 @@ import sys
 import time
 from typing import Iterable, Iterator, NamedTuple
 
+from mcap import stream_reader
 from mcap.exceptions import McapError
 from mcap.reader import make_reader, NonSeekingReader
 from mcap.writer import CompressionType, Writer
@@ -53,8 +57,11 @@ BAG_METADATA_VERSION = 9
 DEFAULT_ROS_DISTRO = 'jazzy'
 DEFINITION_DELIMITER = '=' * 80
 MCAP_MAGIC = b'\x89MCAP0\r\n'
-# What the mcap library raises on a file that ends early or holds a broken record.
-READ_ERRORS = (McapError, ValueError, EOFError, OSError)
+# What the mcap library raises on a file that ends early or holds a broken record; a damaged
+# compressed chunk makes lz4 raise RuntimeError and zstandard its ZstdError (taken from the
+# module mcap decompresses with: zstandard comes with mcap, it is no dependency of ours).
+ZSTD_ERRORS = (stream_reader.zstandard.ZstdError,) if stream_reader.zstandard else ()
+READ_ERRORS = (McapError, ValueError, EOFError, OSError, RuntimeError, *ZSTD_ERRORS)
 PRIMITIVE_TYPES = frozenset((
     'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
     'uint32', 'int64', 'uint64', 'string', 'wstring'))
@@ -73,6 +80,11 @@ CHUNK_SIZE_BYTES = 1024 * 1024
 # that is killed loses at most about this much of the recording.
 FLUSH_PERIOD_S = 1.0
 NANOSECONDS_PER_SECOND = 1_000_000_000
+# A CDR message starts with 4 bytes of encapsulation (the second: 0 big, 1 little endian); a
+# header stamp follows as int32 seconds and uint32 nanoseconds.
+CDR_ENCAPSULATION_BYTES = 4
+CDR_HEADER_STAMP_END = CDR_ENCAPSULATION_BYTES + 8
+CDR_BYTE_ORDERS = {0: '>', 1: '<'}
 # RMW_DURATION_INFINITE: the "infinite" a Jazzy publisher reports for deadline and lifespan.
 INFINITE_NS = 9_223_372_036_854_775_807
 
@@ -111,6 +123,9 @@ class RecordedMessage(NamedTuple):
     type_name: str
     log_time_ns: int
     data: bytes
+    # When the publisher sent it (its own clock): orders messages of several publishers as
+    # they were sent, also where the log times (simulated time) are equal.
+    publish_time_ns: int = 0
 
 
 def _duration_yaml(nanoseconds: int) -> dict:
@@ -169,6 +184,21 @@ def canonical_type_name(type_name: str) -> str:
     """
     package, name = split_type_name(type_name)
     return f'{package}/msg/{name}'
+
+
+def import_message_class(type_name: str):
+    """
+    Return the Python class of a message type, or None when its package is not importable.
+
+    :param type_name: such as ``sensor_msgs/msg/Image``.
+    :return: the class, such as ``sensor_msgs.msg.Image``, or None.
+    :raises RecordingError: if the name is not a message type name.
+    """
+    package, name = split_type_name(type_name)
+    try:
+        return getattr(importlib.import_module(f'{package}.msg'), name)
+    except (ImportError, AttributeError):
+        return None
 
 
 def default_share_dirs() -> list:
@@ -339,6 +369,11 @@ class RecordingWriter:
     def message_count(self) -> int:
         """Return how many messages have been written."""
         return sum(self._message_counts.values())
+
+    @property
+    def message_counts(self) -> dict:
+        """Return {topic: messages written} of the topics added so far."""
+        return dict(self._message_counts)
 
     @property
     def topics(self) -> dict:
@@ -524,6 +559,24 @@ class RecordingWriter:
         self.close()
 
 
+def header_stamp_ns(data: bytes) -> int | None:
+    """
+    Return the header stamp of a serialised message that starts with a ``std_msgs/Header``.
+
+    Images, compressed images and diagnostics start with their header: the stamp is read from
+    the CDR bytes without deserialising a whole frame.
+
+    :param data: the CDR bytes, encapsulation header included.
+    :return: the stamp in nanoseconds, or None if the bytes are too short or of an unknown
+        encapsulation.
+    """
+    if len(data) < CDR_HEADER_STAMP_END or data[1] not in CDR_BYTE_ORDERS:
+        return None
+    seconds, nanoseconds = struct.unpack_from(CDR_BYTE_ORDERS[data[1]] + 'iI', data,
+                                              CDR_ENCAPSULATION_BYTES)
+    return seconds * NANOSECONDS_PER_SECOND + nanoseconds
+
+
 def read_messages(path, topics: Iterable[str] | None = None) -> Iterator[RecordedMessage]:
     """
     Yield a recording's messages in log-time order, still serialised.
@@ -557,7 +610,7 @@ def read_messages(path, topics: Iterable[str] | None = None) -> Iterator[Recorde
         try:
             for schema, channel, message in reader.iter_messages(topics=topics):
                 yield RecordedMessage(channel.topic, schema.name if schema else '',
-                                      message.log_time, message.data)
+                                      message.log_time, message.data, message.publish_time)
         except READ_ERRORS as error:
             raise RecordingError(f'The recording {path} is damaged: {error}.') from None
 
@@ -570,7 +623,7 @@ def _salvage(stream, topics) -> list:
     try:
         for schema, channel, message in records:
             found.append(RecordedMessage(channel.topic, schema.name if schema else '',
-                                         message.log_time, message.data))
+                                         message.log_time, message.data, message.publish_time))
     except READ_ERRORS:
         pass  # The file ends inside a record: everything before it is kept.
     found.sort(key=lambda message: message.log_time_ns)

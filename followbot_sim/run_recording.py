@@ -1,0 +1,219 @@
+"""
+Record a simulated run, every frame of it, for ``followbot --record`` and ``scorecard --record``.
+
+The topics are the ones a user looks at again: the camera (raw, or JPEG as image_transport's
+compressed plugin sends it), its camera_info, the follower's commands and status, odometry,
+ground truth, the score, ``/tf``, ``/tf_static`` and ``/clock``. Log times are simulated time,
+so a recording's timeline is the run's, however fast the machine ran it. The simulator starts
+paused and is let go only when the recorder hears every publisher: no first frame is missed. It
+is held again whenever the recorder falls a simulated second behind (a loaded machine leaves
+it unscheduled), so its queues never overflow; held time is wall time only, simulated time
+stands still.
+"""
+
+import time
+
+from followbot_sim.recorder import Recorder
+from rclpy.parameter import Parameter
+from std_srvs.srv import SetBool
+
+CLOCK_TOPIC = '/clock'
+RAW_CAMERA_TOPIC = ('camera/rgb/image_raw', 'sensor_msgs/msg/Image')
+COMPRESSED_CAMERA_TOPIC = ('camera/rgb/image_raw/compressed', 'sensor_msgs/msg/CompressedImage')
+# Everything but the camera image, as (topic relative to the robot's namespace, type).
+RUN_TOPICS = (
+    ('camera/rgb/camera_info', 'sensor_msgs/msg/CameraInfo'),
+    # Twist or TwistStamped, as the follower's cmd_vel_stamped parameter chose.
+    ('cmd_vel', None),
+    ('odom', 'nav_msgs/msg/Odometry'),
+    ('ground_truth/odom', 'nav_msgs/msg/Odometry'),
+    ('follower/status', 'diagnostic_msgs/msg/DiagnosticArray'),
+    ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray'),
+    ('/tf', 'tf2_msgs/msg/TFMessage'),
+    ('/tf_static', 'tf2_msgs/msg/TFMessage'),
+)
+CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+RECORDER_ODOMETRY_TOPIC = 'odom'
+PAUSE_SERVICE = 'pause'
+BYTES_PER_MEGABYTE = 1e6
+NANOSECONDS = 1e9
+# After a run, the recorder works through what it still holds until nothing has come for this
+# long (wall time), for at most DRAIN_LIMIT_S.
+DRAIN_QUIET_S = 0.5
+DRAIN_LIMIT_S = 30.0
+DRAIN_SPIN_S = 0.05
+# The simulator is held while the recorder lags this far (simulated seconds of /clock) behind
+# its clock, and let go when the lag is back under RESUME_LAG_S: the recorder's queues (5 s of
+# camera, 20 s of /clock) never overflow, however loaded the machine.
+HOLD_LAG_S = 1.0
+RESUME_LAG_S = 0.25
+# Wall seconds after which a simulator still held for the recorder is reported, once.
+WAIT_REPORT_S = 10.0
+
+
+def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list:
+    """
+    Return the topics a run's recording holds, as (topic, message type) pairs.
+
+    :param compressed: record the camera as JPEG (``.../compressed``) instead of raw.
+    :param clock_topic: the simulated clock's topic (a robot under a namespace has its own).
+    :return: the pairs; relative names are the robot's, in the recorder's namespace.
+    """
+    camera = COMPRESSED_CAMERA_TOPIC if compressed else RAW_CAMERA_TOPIC
+    return [camera, *RUN_TOPICS, (clock_topic, CLOCK_TYPE)]
+
+
+def add_record_options(parser, one_file_per_run: bool = False) -> None:
+    """
+    Add ``--record`` and ``--record-compressed`` to a command's argument parser.
+
+    :param parser: an ``argparse.ArgumentParser``.
+    :param one_file_per_run: ``--record`` names a folder for one file per run (the
+        scorecard), not a file.
+    """
+    contents = ('camera, camera_info, cmd_vel, odometry, ground truth, score, follower status, '
+                '/tf, /tf_static, /clock')
+    if one_file_per_run:
+        parser.add_argument('--record', metavar='DIR', default=None,
+                            help='record each run into DIR/SCENARIO-CONFIGURATION.mcap '
+                                 f'(rosbag2-compatible MCAP: {contents})')
+    else:
+        parser.add_argument('--record', metavar='PATH', default=None,
+                            help='record the run into this rosbag2-compatible MCAP file '
+                                 f'({contents}); the simulator starts once the recorder hears '
+                                 'every topic')
+    parser.add_argument('--record-compressed', action='store_true',
+                        help='record the camera as JPEG (sensor_msgs/CompressedImage): about '
+                             '13 MB per simulated minute instead of 50 MB raw')
+
+
+class RunRecording:
+    """A Recorder on simulated time that lets a paused simulator go once it hears everything."""
+
+    def __init__(self, path, simulator_name: str, compressed: bool = False,
+                 clock_topic: str = CLOCK_TOPIC, **kwargs):
+        """
+        Create the recorder node; add :attr:`recorder` to an executor and call :meth:`poll`.
+
+        :param path: the ``.mcap`` file to write.
+        :param simulator_name: the simulator's fully qualified node name, whose pause service
+            is called to start it; None when the caller starts the simulator itself.
+        :param compressed: record the camera as JPEG.
+        :param clock_topic: the simulated clock's topic.
+        :param kwargs: passed to the Recorder and so to ``Node`` (``context=``, ...).
+        :raises RecordingError: if the file cannot be created.
+        """
+        # The recorder's own clock follows the run's clock topic, also under a namespace.
+        remap = [] if clock_topic == CLOCK_TOPIC else [
+            '--ros-args', '-r', f'{CLOCK_TOPIC}:={clock_topic}']
+        self.recorder = Recorder(
+            path, run_topics(compressed, clock_topic), tf_odometry_topic=RECORDER_ODOMETRY_TOPIC,
+            parameter_overrides=[Parameter('use_sim_time', value=True)], cli_args=remap,
+            progress_topic=clock_topic, **kwargs)
+        self._pause_client = None if simulator_name is None else self.recorder.create_client(
+            SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
+        self.started = False
+        self.holding = False
+        self.holds = 0
+        self._created_s = time.monotonic()
+        self._wait_reported = False
+
+    def poll(self) -> bool:
+        """
+        Start the simulator once the recorder hears every topic, hold it while the recorder lags.
+
+        Call it after each spin.
+
+        :return: whether the simulator has been asked to start.
+        """
+        if not self.started:
+            if self.recorder.matched and (
+                    self._pause_client is None or self._pause_client.service_is_ready()):
+                self._set_paused(False)
+                self.started = True
+            return self.started
+        holding = self.holding
+        if self.should_hold() != holding:
+            self._set_paused(self.holding)
+        return True
+
+    def lag_s(self) -> float:
+        """Return how far (simulated seconds) the recorded /clock is behind the recorder's."""
+        progress_ns = self.recorder.progress_ns
+        if progress_ns is None:
+            return 0.0
+        return (self.recorder.get_clock().now().nanoseconds - progress_ns) / NANOSECONDS
+
+    def should_hold(self) -> bool:
+        """
+        Tell whether time should stand still until the recorder catches up.
+
+        :return: True from a lag of HOLD_LAG_S until it is back under RESUME_LAG_S.
+        """
+        lag_s = self.lag_s()
+        holding = lag_s > (RESUME_LAG_S if self.holding else HOLD_LAG_S)
+        self.holds += holding and not self.holding
+        self.holding = holding
+        return holding
+
+    def _set_paused(self, paused: bool) -> None:
+        if self._pause_client is not None:
+            self._pause_client.call_async(SetBool.Request(data=paused))
+
+    def wait_report(self) -> str | None:
+        """
+        Say once, when the simulator has been held for the recorder for long, what is missing.
+
+        :return: the line to print, or None.
+        """
+        if self.started or self._wait_reported or (
+                time.monotonic() - self._created_s < WAIT_REPORT_S):
+            return None
+        self._wait_reported = True
+        waiting = self.recorder.waiting_topics
+        missing = (f'publishers of {", ".join(waiting)}' if waiting
+                   else 'a publisher to match its subscriptions (a type or QoS mismatch?)')
+        return (f'Simulation held for {WAIT_REPORT_S:g} s: the recorder still waits for '
+                f'{missing}.')
+
+    def drain(self, executor) -> None:
+        """
+        Spin until the recorder has written everything it received (nothing new for a while).
+
+        :param executor: the executor the recorder is in.
+        """
+        writer = self.recorder.writer
+        now_s = time.monotonic()
+        deadline_s = now_s + DRAIN_LIMIT_S
+        count, last_change_s = writer.message_count, now_s
+        while now_s < deadline_s and now_s - last_change_s < DRAIN_QUIET_S:
+            executor.spin_once(timeout_sec=DRAIN_SPIN_S)
+            now_s = time.monotonic()
+            if writer.message_count != count:
+                count, last_change_s = writer.message_count, now_s
+
+    def close(self) -> str:
+        """
+        Finish the file and destroy the recorder node.
+
+        :return: one line saying what was recorded, such as ``run.mcap: 2412 messages on 11
+            topics (200 camera frames), 43.1 MB``.
+        """
+        writer = self.recorder.writer
+        camera_frames = sum(count for topic, count in self.message_counts().items()
+                            if topic.endswith((RAW_CAMERA_TOPIC[0], COMPRESSED_CAMERA_TOPIC[0])))
+        self.recorder.destroy_node()
+        try:
+            size = f', {writer.path.stat().st_size / BYTES_PER_MEGABYTE:.1f} MB'
+        except OSError:
+            size = ''
+        failures = f'; {len(self.recorder.failures)} not written' \
+            if self.recorder.failures else ''
+        holds = (f'; time held {self.holds} times for the recorder to catch up' if self.holds
+                 else '')
+        return (f'{writer.path}: {writer.message_count} messages on {len(writer.topics)} '
+                f'topics ({camera_frames} camera frames){size}{failures}{holds}')
+
+    def message_counts(self) -> dict:
+        """Return {topic: messages written}."""
+        return self.recorder.writer.message_counts

@@ -1,0 +1,57 @@
+"""The run recorder over real DDS: it holds simulated time while it lags behind the clock."""
+
+from conftest import spin_until
+from followbot_sim.run_recording import HOLD_LAG_S, RESUME_LAG_S, run_topics, RunRecording
+import pytest
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+
+SIM_TIME_S = 5.0
+NANOSECONDS = 1_000_000_000
+
+
+@pytest.fixture
+def recording_at_sim_time(ros_context, tmp_path):
+    """Yield a RunRecording whose clock reads SIM_TIME_S, from a real /clock publisher."""
+    clock_node = Node('clock_source', context=ros_context)
+    recording = RunRecording(tmp_path / 'run.mcap', None, context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(clock_node)
+    executor.add_node(recording.recorder)
+    publisher = clock_node.create_publisher(Clock, '/clock', 10)
+    sim_time = Clock()
+    sim_time.clock.sec = int(SIM_TIME_S)
+    assert spin_until(executor, lambda: publisher.publish(sim_time) or (
+        recording.recorder.get_clock().now().nanoseconds == SIM_TIME_S * NANOSECONDS))
+    yield recording
+    executor.shutdown()
+    recording.close()
+    clock_node.destroy_node()
+
+
+def test_time_is_held_from_a_lag_of_a_second_until_the_recorder_caught_up(
+        recording_at_sim_time):
+    recording = recording_at_sim_time
+    assert not recording.should_hold()  # Nothing recorded yet: no lag known.
+    # (recorded /clock, expected hold) in order: hysteresis between the two thresholds.
+    steps = [(SIM_TIME_S - HOLD_LAG_S + 0.1, False), (SIM_TIME_S - HOLD_LAG_S - 0.1, True),
+             (SIM_TIME_S - RESUME_LAG_S - 0.1, True), (SIM_TIME_S - RESUME_LAG_S + 0.1, False),
+             (SIM_TIME_S - HOLD_LAG_S + 0.1, False)]
+    for recorded_s, expected in steps:
+        recording.recorder.progress_ns = int(recorded_s * NANOSECONDS)
+        assert recording.should_hold() == expected, recorded_s
+    assert recording.holds == 1
+    assert 'time held 1 times' in recording.close()
+
+
+@pytest.mark.parametrize('compressed, camera', [
+    (False, ('camera/rgb/image_raw', 'sensor_msgs/msg/Image')),
+    (True, ('camera/rgb/image_raw/compressed', 'sensor_msgs/msg/CompressedImage')),
+])
+def test_run_topics_hold_the_camera_chosen_and_the_robots_clock(compressed, camera):
+    topics = run_topics(compressed, '/r1/clock')
+    assert topics[0] == camera
+    assert topics[-1] == ('/r1/clock', 'rosgraph_msgs/msg/Clock')
+    assert {'cmd_vel', 'odom', 'ground_truth/odom', 'follower/status', '/diagnostics', '/tf',
+            '/tf_static', 'camera/rgb/camera_info'} <= {topic for topic, _ in topics}
