@@ -23,6 +23,7 @@ from followbot.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPT
 from followbot.package_files import share_file
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
+from followbot_sim.line_truth import line_truth, LineTruth, PinholeView, sampled_rows
 import mujoco
 import numpy as np
 
@@ -64,6 +65,9 @@ DEFAULT_MAX_DEPTH_M = KINECT_MAX_DEPTH_M
 MUJOCO_CAMERA_TO_BODY_AXES = np.array([[0.0, -1.0, 0.0],
                                        [0.0, 0.0, 1.0],
                                        [-1.0, 0.0, 0.0]])
+# ... and these flip MuJoCo's camera axes (x right, y up, looking along -z) to an optical
+# frame's (x right, y down, looking along +z).
+MUJOCO_CAMERA_TO_OPTICAL_AXES = np.diag([1.0, -1.0, -1.0])
 # A pixel where nothing was hit reads as the far clipping distance, up to float32 rounding.
 FAR_PLANE_FRACTION = 0.999
 # The noise bank holds this many frames' worth of values; each frame reads it from a random
@@ -213,6 +217,7 @@ class FollowbotWorld:
         self._noise_stddev = float(camera_noise_stddev)
         self._noise_seed = int(noise_seed)
         self._noise_bank = None
+        self._painted_points = None
         self.reset()
 
     def _fit_floor_to_course(self, spec: mujoco.MjSpec) -> None:
@@ -304,6 +309,37 @@ class FollowbotWorld:
         """
         width_px, height_px = self._image_size_px
         return self._fx_px, self._fx_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0
+
+    def camera_view(self) -> PinholeView:
+        """
+        Return the RGB camera's pose and intrinsics as the next render will use them.
+
+        :return: the pinhole view (pose from the current state, optical-frame axes).
+        """
+        width_px, height_px = self._image_size_px
+        fx_px, fy_px, cx_px, cy_px = self.camera_intrinsics()
+        mujoco_axes = self.data.cam_xmat[self._camera_id].reshape(3, 3)
+        return PinholeView(self.data.cam_xpos[self._camera_id].copy(),
+                           mujoco_axes @ MUJOCO_CAMERA_TO_OPTICAL_AXES, fx_px, fy_px, cx_px,
+                           cy_px, width_px, height_px)
+
+    def line_truth(self, row_step_px: int = 1, distort=None) -> LineTruth:
+        """
+        Return where the course's centre line is drawn in the RGB camera's image right now.
+
+        :param row_step_px: report crossings at every this many rows, from row 0.
+        :param distort: the lens distortion of normalised coordinates the camera image has
+            (see :mod:`followbot_sim.line_truth`), None for the pinhole MuJoCo renders.
+        :return: the visible pieces of the centre line and its crossings of the sampled rows.
+        """
+        if self._painted_points is None:
+            points_xy = self._course.centre_line_xy
+            steps_m = np.hypot(*np.diff(points_xy, axis=0).T)
+            arc_m = np.concatenate([[0.0], np.cumsum(steps_m)])
+            self._painted_points = self._course.dash_signed_distance_m(arc_m) >= 0.0
+        return line_truth(self._course.centre_line_xy, self._painted_points,
+                          self._course.line_width_m, self.camera_view(),
+                          sampled_rows(self._image_size_px[1], row_step_px), distort)
 
     def sensor_frames(self) -> list[FrameTransform]:
         """
