@@ -35,7 +35,7 @@ from followbot_sim.trail import Trail
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
                                  FollowbotWorld, LEFT_WHEEL_JOINT, RenderingUnavailableError,
                                  RIGHT_WHEEL_JOINT, ViewerUnavailableError)
-from geometry_msgs.msg import Twist, TwistStamped
+from geometry_msgs.msg import Point32, PolygonStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -112,6 +112,9 @@ SIMULATOR_PARAMETERS = {
         True, 'Publish camera/depth/image_raw and camera/depth/camera_info.', read_only=True),
     'point_cloud_enabled': ParameterSpec(
         True, 'Publish camera/depth/points.', read_only=True),
+    'line_truth_row_step_px': ParameterSpec(
+        10, 'Rows between the ground-truth samples of camera/rgb/line_truth (from row 0); '
+        'published only while someone subscribes.', 1, 1280, read_only=True),
     'horizontal_fov_deg': ParameterSpec(
         DEFAULT_HORIZONTAL_FOV_DEG, 'Camera horizontal field of view (Kinect: 60).', 10.0,
         150.0, read_only=True),
@@ -158,6 +161,29 @@ TWIST_TYPES = {False: 'geometry_msgs/msg/Twist', True: 'geometry_msgs/msg/TwistS
 WHEEL_JOINTS = (LEFT_WHEEL_JOINT, RIGHT_WHEEL_JOINT)
 # Static transforms are latched: late subscribers (RViz, tf2 listeners) still get them.
 TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LINE_TRUTH_TOPIC = 'camera/rgb/line_truth'
+
+
+def fill_line_truth_polygon(msg: PolygonStamped, truth) -> PolygonStamped:
+    """
+    Write a frame's line truth into a PolygonStamped, the layout of ``camera/rgb/line_truth``.
+
+    One point per crossing of a sampled row by the line's centre: x = column and y = row in
+    pixels of the RGB image (pixel centres at integers), z = the line's width there in pixels
+    (> 0). A sampled row where the line is not seen gets one point x = NaN, y = row, z = 0.
+
+    :param msg: the message to fill (its header is left alone).
+    :param truth: the frame's :class:`followbot_sim.line_truth.LineTruth`.
+    :return: the message.
+    """
+    points = []
+    for row_px, crossings in zip(truth.rows_px, truth.crossings):
+        if len(crossings) == 0:
+            points.append(Point32(x=math.nan, y=float(row_px), z=0.0))
+        for column_px, width_px in crossings:
+            points.append(Point32(x=float(column_px), y=float(row_px), z=float(width_px)))
+    msg.polygon.points = points
+    return msg
 
 
 def _reached(time_s: float, target_s: float) -> bool:
@@ -309,7 +335,7 @@ class SimulatorNode(Node):
         size_px = self._world.image_size_px
         self._image_publisher = self._camera_info_publisher = None
         self._depth_publisher = self._depth_info_publisher = self._points_publisher = None
-        self._compressed_publisher = None
+        self._compressed_publisher = self._line_truth_publisher = None
         if parameters['rgb_enabled']:
             self._image_publisher = self.create_publisher(Image, 'camera/rgb/image_raw', 10)
             self._compressed_publisher = self.create_publisher(
@@ -318,6 +344,11 @@ class SimulatorNode(Node):
                 frame_id=frames.CAMERA_RGB_OPTICAL_FRAME))
             self._camera_info_publisher = self.create_publisher(
                 CameraInfo, 'camera/rgb/camera_info', 10)
+            self._line_truth_publisher = self.create_publisher(
+                PolygonStamped, LINE_TRUTH_TOPIC, 10)
+            self._line_truth_msg = PolygonStamped(header=Header(
+                frame_id=frames.CAMERA_RGB_OPTICAL_FRAME))
+            self._line_truth_row_step_px = parameters['line_truth_row_step_px']
         if parameters['depth_enabled']:
             self._depth_publisher = self.create_publisher(Image, 'camera/depth/image_raw', 10)
             self._depth_info_publisher = self.create_publisher(
@@ -634,6 +665,11 @@ class SimulatorNode(Node):
             self._camera_info_publisher.publish(self._rgb_info_msg)
             raw_wanted = self._image_publisher.get_subscription_count() > 0
             compressed_wanted = self._compressed_publisher.get_subscription_count() > 0
+            if self._line_truth_publisher.get_subscription_count() > 0:
+                # Before rendering: the truth is of the state the frame shows.
+                fill_line_truth_polygon(self._line_truth_msg, self._world.line_truth(
+                    self._line_truth_row_step_px)).header.stamp = stamp
+                self._line_truth_publisher.publish(self._line_truth_msg)
             if raw_wanted or compressed_wanted:
                 self._publish_rgb(stamp, raw_wanted, compressed_wanted)
                 if self._lockstep and not self._paused and self._partner_present():
