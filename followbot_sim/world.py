@@ -21,9 +21,12 @@ from followbot.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPT
                               CAMERA_RGB_OPTICAL_FRAME, FrameTransform, optical_rotation_xyzw,
                               quaternion_from_matrix, yaw_from_quaternion)
 from followbot.package_files import share_file
+from followbot_sim import appearance
+from followbot_sim.camera_model import CameraModel
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
 from followbot_sim.line_truth import line_truth, LineTruth, PinholeView, sampled_rows
+from followbot_sim.realism import Realism
 import mujoco
 import numpy as np
 
@@ -132,7 +135,7 @@ class FollowbotWorld:
                  texture_size_px: int = 2048, limits: DiffDriveLimits = DiffDriveLimits(),
                  models_dir: Path | None = None, camera_noise_stddev: float = 0.0,
                  noise_seed: int = 0, min_depth_m: float = DEFAULT_MIN_DEPTH_M,
-                 max_depth_m: float = DEFAULT_MAX_DEPTH_M):
+                 max_depth_m: float = DEFAULT_MAX_DEPTH_M, realism: Realism | None = None):
         """
         Load the scene, paint the course on the floor and put the robot at the course start.
 
@@ -154,6 +157,8 @@ class FollowbotWorld:
             blind zone is ``KINECT_MIN_DEPTH_M`` (0.45 m).
         :param max_depth_m: farther depths read as NaN (the Kinect's ~8 m; ``math.inf`` keeps
             all up to the renderer's far clipping plane).
+        :param realism: a world and camera drawn from a realism preset
+            (:func:`followbot_sim.realism.realise`); None or ``clean`` keeps the ideal scene.
         :raises ValueError: for a non-positive image size, a field of view outside (0, 180),
             a pitch outside [-90, 90], a negative or non-finite noise level, a negative seed or
             a depth range that is not 0 <= min < max.
@@ -175,6 +180,7 @@ class FollowbotWorld:
             raise ValueError('The depth range must satisfy 0 <= min_depth_m < max_depth_m, got '
                              f'min_depth_m={min_depth_m}, max_depth_m={max_depth_m}.')
         self._course = course
+        self._realism = None if realism is None or realism.is_clean else realism
         self._limits = limits
         self._image_size_px = (image_width_px, image_height_px)
         self._camera_pitch_deg = float(camera_pitch_deg)
@@ -188,6 +194,8 @@ class FollowbotWorld:
         spec.visual.global_.offheight = max(spec.visual.global_.offheight, image_height_px)
         self._fit_floor_to_course(spec)
         self._tilt_kinect(spec, camera_pitch_deg)
+        if self._realism is not None:
+            appearance.furnish(spec, self._realism, course, FLOOR_GEOM)
         camera_fovy_deg = math.degrees(2.0 * math.atan((image_height_px / 2.0) / self._fx_px))
         for camera_name in (CAMERA_NAME, DEPTH_CAMERA_NAME):
             spec.camera(camera_name).fovy = camera_fovy_deg
@@ -218,6 +226,8 @@ class FollowbotWorld:
         self._noise_seed = int(noise_seed)
         self._noise_bank = None
         self._painted_points = None
+        self._camera_model = None if self._realism is None else CameraModel(
+            self._realism, self.camera_intrinsics(), self._image_size_px)
         self.reset()
 
     def _fit_floor_to_course(self, spec: mujoco.MjSpec) -> None:
@@ -256,6 +266,8 @@ class FollowbotWorld:
         texture_id = self.model.texture(COURSE_TEXTURE_NAME).id
         start = self.model.tex_adr[texture_id]
         texture = self._course.draw_texture(texture_size_px)
+        if self._realism is not None:
+            texture = appearance.paint_floor(texture, self._realism, self._course)
         self.model.tex_data[start:start + texture.size] = texture.reshape(-1)
 
     @property
@@ -337,9 +349,31 @@ class FollowbotWorld:
             steps_m = np.hypot(*np.diff(points_xy, axis=0).T)
             arc_m = np.concatenate([[0.0], np.cumsum(steps_m)])
             self._painted_points = self._course.dash_signed_distance_m(arc_m) >= 0.0
+        view = self.camera_view()
+        if self._camera_model is not None and distort is None:
+            # The camera's output, not MuJoCo's pinhole: camera_info's K and D.
+            fx_px, fy_px, cx_px, cy_px = self._camera_model.intrinsics
+            view = PinholeView(view.position_m, view.rotation, fx_px, fy_px, cx_px, cy_px,
+                               view.width_px, view.height_px)
+            distort = self._camera_model.distort
         return line_truth(self._course.centre_line_xy, self._painted_points,
-                          self._course.line_width_m, self.camera_view(),
+                          self._course.line_width_m, view,
                           sampled_rows(self._image_size_px[1], row_step_px), distort)
+
+    @property
+    def realism(self) -> Realism | None:
+        """Return the realistic world and camera in use, None for the clean scene."""
+        return self._realism
+
+    def published_camera_model(self) -> tuple:
+        """
+        Return what camera_info must say of the RGB image this world delivers.
+
+        :return: ((fx, fy, cx, cy) in pixels, plumb_bob D as a list of five).
+        """
+        if self._camera_model is None:
+            return self.camera_intrinsics(), [0.0] * 5
+        return self._camera_model.intrinsics, self._camera_model.distortion_coefficients
 
     def sensor_frames(self) -> list[FrameTransform]:
         """
@@ -554,6 +588,9 @@ class FollowbotWorld:
         renderer.disable_depth_rendering()
         renderer.update_scene(self.data, camera=self._camera_id)
         image = renderer.render(out=self._camera_image)
+        if self._camera_model is not None:
+            step_index = round(self.data.time / self.model.opt.timestep)
+            image = self._camera_model.process(image, step_index, *self.robot_twist())
         if self._noise_bank is not None:
             self._add_camera_noise(image)
         return image
