@@ -12,10 +12,9 @@ planks, tiles, seams, stains, mottling.
 import math
 
 import cv2
-import numpy as np
-
 from followbot_sim.course import FLOOR_GREY
 from followbot_sim.realism import kelvin_to_rgb, Realism, SECOND_LINE_COLOURS
+import numpy as np
 
 # OpenCV hue (0-179) of the tape's yellow and its brightness (value, 0-255).
 TAPE_HUE = 28

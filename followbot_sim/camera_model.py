@@ -15,9 +15,8 @@ the frame, so the same run gives the same frames bit for bit. Pure: no ROS, no M
 """
 
 import cv2
-import numpy as np
-
 from followbot_sim.realism import kelvin_to_rgb, Realism
+import numpy as np
 
 # Auto-exposure aims the scene's mean brightness here (8-bit), reacting with this exponent
 # (1 = fully, at once) and within these gains.
@@ -261,4 +260,3 @@ class CameraModel:
         cv2.sqrt(variance, dst=variance)
         cv2.multiply(variance, normal, dst=variance)
         cv2.add(frame, variance, dst=frame)
-
