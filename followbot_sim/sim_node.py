@@ -24,12 +24,13 @@ from followbot.image_conversion import (array_to_image, BYTE_DTYPE, dtype_of, fr
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec
 from followbot_sim.course import LapTracker
-from followbot_sim.course_file import load_course
+from followbot_sim.course_file import course_file_realism, load_course
 from followbot_sim.depth import depth_to_points
 from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits, KOBUKI_COMMAND_TIMEOUT_S,
                                       KOBUKI_MAX_ANGULAR_SPEED_RADPS, KOBUKI_MAX_LINEAR_SPEED_MPS,
                                       TIME_EPSILON_S)
 from followbot_sim.odometry import WheelOdometry
+from followbot_sim.realism import CLEAN, PRESET_NAMES, realise
 from followbot_sim.score import score_status_name, SIMULATOR_NODE
 from followbot_sim.trail import Trail
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
@@ -70,6 +71,13 @@ SIMULATOR_PARAMETERS = {
     'random_seed': ParameterSpec(
         0, 'Seed of the camera noise: the same seed and inputs give the same run.', 0,
         2 ** 31 - 1, read_only=True),
+    'realism': ParameterSpec(
+        '', 'How real the world and camera look: ' + ', '.join(PRESET_NAMES) + ' (see '
+        "docs); empty takes the course file's realism.preset, else clean.", read_only=True),
+    'realism_seed': ParameterSpec(
+        -1, 'Seed of the realistic world (floor, tape, lights, clutter, camera noise): the '
+        "same seed gives the same frames; -1 takes the course file's realism.seed, else 0.",
+        -1, 2 ** 31 - 1, read_only=True),
     'real_time_factor': ParameterSpec(
         1.0, 'Simulated seconds per wall second; 0 runs as fast as possible.', 0.0, 100.0),
     'lockstep': ParameterSpec(
@@ -243,6 +251,7 @@ class SimulatorNode(Node):
         camera_rate_hz = parameters['camera_rate_hz']
 
         course = load_course(parameters['course'], lighting=parameters['lighting_zones'])
+        realism = realise(*self._realism_choice(parameters))
         limits = DiffDriveLimits(
             max_linear_speed_mps=parameters['max_linear_speed_mps'],
             max_angular_speed_radps=parameters['max_angular_speed_radps'])
@@ -250,7 +259,7 @@ class SimulatorNode(Node):
             course, parameters['image_width_px'], parameters['image_height_px'],
             parameters['horizontal_fov_deg'], parameters['camera_pitch_deg'], limits=limits,
             camera_noise_stddev=parameters['camera_noise_stddev_levels'],
-            noise_seed=parameters['random_seed'])
+            noise_seed=parameters['random_seed'], realism=realism)
         self._watchdog = CommandWatchdog(parameters['command_timeout_s'])
         self._lap_tracker = LapTracker(course)
         self._odometry = WheelOdometry(limits.wheel_radius_m, limits.wheel_separation_m)
@@ -316,10 +325,20 @@ class SimulatorNode(Node):
                 else 'as fast as possible')
         if self._lockstep:
             pace += ', in lockstep with the follower'
+        if realism.preset != CLEAN:
+            pace += f', realism {realism.preset} (seed {realism.seed}, {realism.floor} floor)'
         self.get_logger().info(
             f"Simulating course '{course.name}' ({course.length_m:.1f} m) with a "
             f'{width_px}x{height_px} camera at {camera_rate_hz:g} Hz, {pace}'
             f"{', paused' if self._paused else ''}.")
+
+    @staticmethod
+    def _realism_choice(parameters: dict) -> tuple:
+        """Return (preset, seed): the parameters, falling back on the course file's."""
+        from_file = course_file_realism(parameters['course']) or (CLEAN, 0)
+        preset = parameters['realism'] or from_file[0]
+        seed = parameters['realism_seed'] if parameters['realism_seed'] >= 0 else from_file[1]
+        return preset, seed
 
     def _open_viewer(self, wanted: bool) -> None:
         if not wanted:
@@ -332,6 +351,7 @@ class SimulatorNode(Node):
     def _make_publishers(self, parameters: dict) -> None:
         # REP-2003: sensor publishers are reliable; subscribers pick best effort if they like.
         intrinsics = self._world.camera_intrinsics()
+        rgb_intrinsics, rgb_distortion = self._world.published_camera_model()
         size_px = self._world.image_size_px
         self._image_publisher = self._camera_info_publisher = None
         self._depth_publisher = self._depth_info_publisher = self._points_publisher = None
@@ -360,7 +380,9 @@ class SimulatorNode(Node):
         self._depth_msg = Image(header=Header(frame_id=frames.CAMERA_DEPTH_OPTICAL_FRAME))
         self._points_msg = PointCloud2(header=Header(frame_id=frames.CAMERA_DEPTH_OPTICAL_FRAME))
         self._rgb_info_msg = messages.camera_info(
-            intrinsics, size_px, frames.CAMERA_RGB_OPTICAL_FRAME)
+            rgb_intrinsics, size_px, frames.CAMERA_RGB_OPTICAL_FRAME)
+        # A realistic camera's lens: the raw image is distorted, as camera_info says.
+        self._rgb_info_msg.d = [float(value) for value in rgb_distortion]
         self._depth_info_msg = messages.camera_info(
             intrinsics, size_px, frames.CAMERA_DEPTH_OPTICAL_FRAME)
         width_px, height_px = size_px

@@ -15,7 +15,7 @@ from geometry_msgs.msg import PolygonStamped, Twist, Vector3
 import pytest
 from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CameraInfo, Image
 
 COMMAND_TIMEOUT_S = 0.6
 FORWARD_SPEED_MPS = 0.3
@@ -129,3 +129,26 @@ def test_line_truth_topic_gives_the_line_under_the_robot_stamped_like_the_image(
     assert len(bottom) == 1 and bottom[0].x == pytest.approx(319.5, abs=30.0)
     # ~0.35 m ahead the 0.19 m line is ~300 px wide.
     assert 200.0 < bottom[0].z < 400.0
+
+
+def test_realism_from_the_course_file_distorts_the_image_as_camera_info_says(ros_context,
+                                                                               tmp_path):
+    course_file = tmp_path / 'lab_square.yaml'
+    course_file.write_text(
+        'centre_line:\n  start: [-1.0, -1.0, 0]\n  segments:\n'
+        + '    - {straight_m: 2.0}\n    - {arc_radius_m: 0.5, arc_angle_deg: 90}\n' * 4
+        + 'floor_size_m: 6.0\nrealism: {preset: lab, seed: 4}\n')
+    harness = SimHarness(ros_context, Parameter('course', value=str(course_file)),
+                         Parameter('depth_enabled', value=False),
+                         Parameter('point_cloud_enabled', value=False))
+    try:
+        infos = []
+        harness.client.create_subscription(CameraInfo, 'camera/rgb/camera_info',
+                                           infos.append, 10)
+        harness.spin_until(lambda: infos)
+        assert harness.world.realism.preset == 'lab' and harness.world.realism.seed == 4
+        fx_px, _, _, _ = harness.world.published_camera_model()[0]
+        assert infos[-1].d[0] == pytest.approx(harness.world.realism.radial_distortion_k1)
+        assert infos[-1].d[0] < 0.0 and infos[-1].k[0] == pytest.approx(fx_px)
+    finally:
+        harness.close()
