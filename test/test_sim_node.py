@@ -131,8 +131,7 @@ def test_line_truth_topic_gives_the_line_under_the_robot_stamped_like_the_image(
     assert 200.0 < bottom[0].z < 400.0
 
 
-def test_realism_from_the_course_file_distorts_the_image_as_camera_info_says(ros_context,
-                                                                               tmp_path):
+def test_realism_from_the_course_file_gives_camera_info_the_lens(ros_context, tmp_path):
     course_file = tmp_path / 'lab_square.yaml'
     course_file.write_text(
         'centre_line:\n  start: [-1.0, -1.0, 0]\n  segments:\n'
