@@ -117,7 +117,7 @@ def _carpet(rng, size_px, texel_m):
 
 def _rubber(rng, size_px, texel_m):
     level = rng.uniform(35.0, 55.0)
-    stud_px = max(3, int(0.04 / texel_m))
+    stud_px = max(3, int(0.08 / texel_m))
     rows = np.arange(size_px) % stud_px
     studs = ((rows[:, None] - stud_px / 2) ** 2 + (rows[None, :] - stud_px / 2) ** 2
              < (stud_px / 3) ** 2)
@@ -273,9 +273,12 @@ def furnish(spec, realism: Realism, course, floor_geom_name: str) -> None:
         # The added lights replace the clean scene's white sun; a little ambient remains.
         for light in spec.lights:
             light.active = False
-        spec.visual.headlight.ambient = [0.12] * 3
-        spec.visual.headlight.diffuse = [0.05] * 3
-    level = realism.light_level
+        spec.visual.headlight.ambient = [0.03] * 3
+        spec.visual.headlight.diffuse = [0.02] * 3
+    # Overlapping pools of light must not clip the tape's red in the render (the camera's
+    # white balance would then turn it green): the lights share the level between them, and
+    # the camera's auto-exposure brings the frame up.
+    level = realism.light_level / math.sqrt(max(1, len(realism.light_temperatures_k)))
     for index, temperature_k in enumerate(realism.light_temperatures_k):
         colour = kelvin_to_rgb(temperature_k) * level
         outdoor = realism.preset == 'outdoor'
@@ -284,14 +287,16 @@ def furnish(spec, realism: Realism, course, floor_geom_name: str) -> None:
         light = spec.worldbody.add_light(
             name=f'realism_light_{index}', pos=[*position, 6.0 if outdoor else height_m],
             castshadow=bool(realism.shadows and index == 0), diffuse=colour.tolist(),
-            specular=(0.3 * colour).tolist(), ambient=[0.0, 0.0, 0.0])
+            specular=(0.3 * colour).tolist(), ambient=(0.6 * colour).tolist())
         if outdoor:
             light.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
             tilt = rng.uniform(-0.6, 0.6, 2)
             light.dir = [float(tilt[0]), float(tilt[1]), -1.0]
         else:
             light.dir = [0.0, 0.0, -1.0]
-            light.cutoff = 80.0
+            # Wide, even ceiling lamps: a room is lit everywhere, brighter under each lamp.
+            light.cutoff = 85.0
+            light.exponent = 1.0
             light.attenuation = [1.0, 0.0, 0.02]
     if realism.shadows and realism.light_temperatures_k:
         spec.visual.quality.shadowsize = 1024

@@ -22,7 +22,7 @@ import numpy as np
 # (1 = fully, at once) and within these gains.
 EXPOSURE_TARGET_LEVEL = 115.0
 EXPOSURE_RESPONSE = 0.7
-EXPOSURE_GAIN_LIMITS = (0.4, 3.0)
+EXPOSURE_GAIN_LIMITS = (0.4, 6.0)
 # Metering reads every this-many-th pixel each way.
 METERING_STEP_PX = 8
 # Motion blur shorter than this (pixels) is left out: it would not show.
