@@ -34,6 +34,7 @@ CLUTTER_SIZE_M = (0.08, 0.3)
 WALL_HEIGHT_M = 1.5
 WALL_THICKNESS_M = 0.05
 LIGHT_HEIGHT_M = (2.2, 3.0)
+LAMP_SPREAD_M = 1.0
 YELLOW_RGB = (0.95, 0.8, 0.1)
 # Object colours: muted browns, greys, blues, as boxes and bins are.
 CLUTTER_COLOURS = ((0.55, 0.42, 0.3), (0.4, 0.4, 0.42), (0.25, 0.3, 0.45),
@@ -282,7 +283,11 @@ def furnish(spec, realism: Realism, course, floor_geom_name: str) -> None:
     for index, temperature_k in enumerate(realism.light_temperatures_k):
         colour = kelvin_to_rgb(temperature_k) * level
         outdoor = realism.preset == 'outdoor'
-        position = [float(value) for value in rng.uniform(-0.6 * half_m, 0.6 * half_m, 2)]
+        # Lamps hang over the course (a room is lit where people work), spread along it.
+        x_m, y_m, _ = course.point_at(course.length_m * (index + rng.uniform()) / max(
+            1, len(realism.light_temperatures_k)))
+        position = [float(np.clip(value + rng.uniform(-LAMP_SPREAD_M, LAMP_SPREAD_M),
+                                  -half_m, half_m)) for value in (x_m, y_m)]
         height_m = float(rng.uniform(*LIGHT_HEIGHT_M))
         light = spec.worldbody.add_light(
             name=f'realism_light_{index}', pos=[*position, 6.0 if outdoor else height_m],
