@@ -23,6 +23,7 @@ floor frame (origin at the floor centre, x east, y north)::
     dashes: {dash_length_m: 0.3, gap_length_m: 0.15}                            # optional
     distractors: [{x_m: .., y_m: .., length_m: .., width_m: .., yaw_deg: ..}]  # optional
     lighting_zones: [{x_m: .., y_m: .., radius_m: .., gain: ..}]              # optional
+    realism: {preset: home, seed: 3}  # optional: the simulator's realism:=/realism_seed:=
 
 A distractor's ``yaw_deg`` (counter-clockwise from east, along its length) may be left out for
 0. An image course cannot have dashes: its image already shows the line as it is.
@@ -45,12 +46,14 @@ from followbot_sim.course_library import COURSES
 from followbot_sim.course_library import Straight
 from followbot_sim.course_library import turtle_loop_xy
 from followbot_sim.course_library import with_lighting_zones
+from followbot_sim.realism import CLEAN, PRESET_NAMES
 import yaml
 
 # File name endings that load_course reads as course files.
 COURSE_FILE_SUFFIXES = ('.yaml', '.yml')
 _TOP_LEVEL_KEYS = ('name', 'floor_size_m', 'line_width_m', 'centre_line', 'image', 'dashes',
-                   'distractors', 'lighting_zones')
+                   'distractors', 'lighting_zones', 'realism')
+_REALISM_KEYS = ('preset', 'seed')
 _POSE_LENGTH = 3  # [x_m, y_m, yaw_deg]
 _POINT_LENGTH = 2  # [x_m, y_m]
 
@@ -187,16 +190,8 @@ class _CourseFileReader:
         return x_m, y_m, math.radians(yaw_deg)
 
 
-def load_course_file(path):
-    """
-    Build a course from a YAML course file (the schema is in this module's docstring).
-
-    :param path: path of the file.
-    :return: the course.
-    :raises ValueError: if the file cannot be read, is not valid YAML or does not follow the
-        schema, or the course it describes is invalid (off the floor, not closed, ...); the
-        message names the file and the key.
-    """
+def _read_document(path):
+    """Read a course file's YAML into its checked top-level mapping."""
     reader = _CourseFileReader(path)
     try:
         text = reader.path.read_text(encoding='utf-8')
@@ -211,6 +206,47 @@ def load_course_file(path):
         raise ValueError(
             f'course file {reader.path} is not valid YAML: {_yaml_problem(error)}.') from None
     document = reader.mapping(document, 'top level', optional=_TOP_LEVEL_KEYS)
+    if 'realism' in document:
+        realism = reader.mapping(document['realism'], 'realism', optional=_REALISM_KEYS)
+        preset = realism.get('preset', CLEAN)
+        if preset not in PRESET_NAMES:
+            raise reader.error('realism.preset', f'must be one of {", ".join(PRESET_NAMES)}, '
+                               f'got {preset!r}.')
+        seed = realism.get('seed', 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise reader.error('realism.seed', f'must be a non-negative integer, got {seed!r}.')
+    return reader, document
+
+
+def course_file_realism(spec):
+    """
+    Return the realism a course file asks for, if any.
+
+    :param spec: a built-in course name or a course file's path (as :func:`load_course`).
+    :return: ``(preset, seed)`` from the file's ``realism`` mapping, None when the course is
+        built in or its file has no ``realism``.
+    :raises ValueError: if the file is invalid.
+    """
+    if not (isinstance(spec, (str, os.PathLike))
+            and Path(spec).suffix.lower() in COURSE_FILE_SUFFIXES):
+        return None
+    _, document = _read_document(spec)
+    if 'realism' not in document:
+        return None
+    return document['realism'].get('preset', CLEAN), int(document['realism'].get('seed', 0))
+
+
+def load_course_file(path):
+    """
+    Build a course from a YAML course file (the schema is in this module's docstring).
+
+    :param path: path of the file.
+    :return: the course.
+    :raises ValueError: if the file cannot be read, is not valid YAML or does not follow the
+        schema, or the course it describes is invalid (off the floor, not closed, ...); the
+        message names the file and the key.
+    """
+    reader, document = _read_document(path)
     name = document.get('name', reader.path.stem)
     if not isinstance(name, str) or not name:
         raise reader.error('name', f'must be a non-empty string, got {name!r}.')

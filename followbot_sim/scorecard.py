@@ -37,7 +37,9 @@ from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
+from followbot_sim.perception_monitor import PerceptionMonitor
 from followbot_sim.plots import write_plots
+from followbot_sim.realism import PRESET_NAMES
 from followbot_sim.run_recording import add_record_options, RunRecording
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS, SimulatorNode
 import rclpy
@@ -80,9 +82,13 @@ LIGHT_NOISE_SEED = 1
 # Simulator parameters the scorecard sets for every run; --sim-param may not change them.
 SCORECARD_SIM_PARAMETERS = ('course', 'lighting_zones', 'camera_noise_stddev_levels',
                             'random_seed', 'real_time_factor', 'lockstep', 'start_paused',
-                            'run_duration_s')
+                            'run_duration_s', 'realism', 'realism_seed')
 # The scorecard scores one robot per run, its follower on the single robot's topics.
 MULTI_ROBOT_SIM_PARAMETERS = ('robots', 'robot_spacing_m')
+# The realistic scenarios: every realism preset on these courses with these seeds.
+REALISTIC_COURSES = ('book_loop', 's_bends', 'square_corners')
+REALISTIC_SEEDS = (1, 2)
+REALISTIC_GROUP = 'realistic'
 # ROS log levels for the nodes: quiet by default, as several runs share one terminal.
 NODE_LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
 # Simulated seconds between the samples of a run's distance from the line and speed (plots).
@@ -123,6 +129,10 @@ class Scenario:
     lighting_zones: bool = False
     camera_noise_stddev_levels: float = 0.0
     random_seed: int = 0
+    # A realism preset (the simulator's realism:=); '' leaves the simulator's default. A
+    # realistic scenario also scores the detector against the ground truth per band.
+    realism: str = ''
+    realism_seed: int = 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,6 +155,12 @@ SCENARIOS = {
         'book_loop_light_noise', 'book_loop', lighting_zones=True,
         camera_noise_stddev_levels=LIGHT_NOISE_STDDEV_LEVELS, random_seed=LIGHT_NOISE_SEED),
 }
+
+
+REALISTIC_SCENARIOS = {
+    f'{course}@{preset}#{seed}': Scenario(f'{course}@{preset}#{seed}', course, realism=preset,
+                                          realism_seed=seed)
+    for preset in PRESET_NAMES for course in REALISTIC_COURSES for seed in REALISTIC_SEEDS}
 
 
 def _split_names(values) -> list:
@@ -175,13 +191,18 @@ def select_scenarios(names=None) -> list:
     for name in chosen:
         if name in SCENARIOS:
             scenarios.append(SCENARIOS[name])
+        elif name in REALISTIC_SCENARIOS:
+            scenarios.append(REALISTIC_SCENARIOS[name])
+        elif name == REALISTIC_GROUP:
+            scenarios.extend(REALISTIC_SCENARIOS.values())
         elif Path(name).suffix.lower() in COURSE_FILE_SUFFIXES:
             # Load it here, once: a bad file is one clear message, not an error in every row.
             load_course(name)
             scenarios.append(Scenario(name, str(Path(name).resolve())))
         else:
             raise ValueError(
-                f'Unknown scenario {name!r}: give one of {", ".join(SCENARIOS)} or the path '
+                f'Unknown scenario {name!r}: give one of {", ".join(SCENARIOS)}, '
+                f'{REALISTIC_GROUP} (every COURSE@PRESET#SEED, e.g. book_loop@lab#1) or the path '
                 f'of a course file ending in {" or ".join(COURSE_FILE_SUFFIXES)}.')
     return scenarios
 
@@ -395,6 +416,56 @@ def run_metrics(summary: dict, line_statistics: dict) -> dict:
     }
 
 
+def perception_figures(tally) -> dict:
+    """
+    Summarise a perception tally for the JSON and the realistic table.
+
+    :param tally: a :class:`followbot_sim.perception_score.PerceptionTally`.
+    :return: frames and bands scored, and right, false, missed and line-recall percentages.
+    """
+    return {'frames': tally.frames, 'bands': tally.bands,
+            'right_percent': 100.0 * tally.right_share,
+            'false_percent': 100.0 * tally.false_share,
+            'missed_percent': 100.0 * tally.missed_share,
+            'line_recall_percent': 100.0 * tally.line_recall}
+
+
+REALISTIC_TABLE_COLUMNS = ('preset', 'course', 'seed', 'configuration', 'end', 'lap s',
+                           'RMS cm', 'max cm', 'lost frames %', 'bands right %',
+                           'false %', 'missed %', 'sim s / wall s')
+
+
+def format_realistic_table(runs: list) -> str:
+    """
+    Format the realistic runs as a Markdown table: per preset, course and seed.
+
+    :param runs: run records; those without a perception score are left out.
+    :return: the table, or an empty string when no run is realistic.
+    """
+    rows = []
+    for run in runs:
+        if not run.get('perception'):
+            continue
+        metrics = run['metrics'] or {}
+        perception = run['perception']
+        preset, _, seed = run['scenario'].partition('@')[2].partition('#')
+        rows.append([preset, run['course'], seed, run['configuration'], run['end_reason'],
+                     _number(metrics.get('lap_time_s'), 1),
+                     _number(metrics.get('rms_distance_from_line_m'), 1, CM_PER_M),
+                     _number(metrics.get('max_distance_from_line_m'), 1, CM_PER_M),
+                     _number(metrics.get('line_lost_percent'), 2),
+                     _number(perception['right_percent'], 1),
+                     _number(perception['false_percent'], 1),
+                     _number(perception['missed_percent'], 1),
+                     _number(run.get('simulated_per_wall'), 2)])
+    if not rows:
+        return ''
+    lines = ['| ' + ' | '.join(REALISTIC_TABLE_COLUMNS) + ' |',
+             '|' + '|'.join('---' for _ in REALISTIC_TABLE_COLUMNS) + '|']
+    lines += ['| ' + ' | '.join(row) + ' |' for row in rows]
+    return '\n'.join(lines)
+
+
 def speedups(runs: list) -> dict:
     """
     Compare each configuration's lap time with the book's on the same scenario.
@@ -526,6 +597,9 @@ def _simulator_overrides(scenario: Scenario, sim_parameters) -> list:
         'camera_noise_stddev_levels': scenario.camera_noise_stddev_levels,
         'random_seed': scenario.random_seed,
     }
+    if scenario.realism:
+        values.update(realism=scenario.realism, realism_seed=scenario.realism_seed,
+                      line_truth_row_step_px=1)
     return [Parameter(name, value=value) for name, value in values.items()]
 
 
@@ -600,6 +674,12 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
             Parameter('use_sim_time', value=True),
             Parameter('image_timeout_s', value=LOCKSTEP_IMAGE_TIMEOUT_S)])
         nodes.append(follower)
+        monitor = None
+        if scenario.realism:
+            monitor = PerceptionMonitor(*(follower.get_parameter(name).value for name in (
+                'camera_height_m', 'camera_pitch_deg', 'camera_forward_m')), context=context)
+            nodes.append(monitor)
+            executor.add_node(monitor)
         # Simulated time starts only once both ends are connected: no lap time is spent
         # waiting for discovery with the robot standing still.
         executor.add_node(follower)
@@ -655,6 +735,8 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
                        'rate_hz': simulator.get_parameter('camera_rate_hz').value,
                        'noise_stddev_levels': world.camera_noise_stddev},
             **recorded,
+            'perception': None if monitor is None else perception_figures(monitor.tally),
+            'realism': None if world.realism is None else dataclasses.asdict(world.realism),
         }
     finally:
         if recording is not None:
@@ -930,6 +1012,10 @@ def main(argv=None) -> int:
         record['book_lap_time_ratio'] = ratios.get((record['scenario'], record['configuration']))
     print(format_table(records))
     print()
+    realistic_table = format_realistic_table(records)
+    if realistic_table:
+        print(realistic_table)
+        print()
     print(f'`{shlex.join([PROGRAM, *argv])}`: camera {_cameras(records)}; '
           f"{_count(len(records), 'run')} in {wall_s:.0f} s of wall time on "
           f"{_count(options.workers, 'worker')}. × book: the book configuration's "

@@ -24,12 +24,13 @@ from followbot.image_conversion import (array_to_image, BYTE_DTYPE, dtype_of, fr
 from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec
 from followbot_sim.course import LapTracker
-from followbot_sim.course_file import load_course
+from followbot_sim.course_file import course_file_realism, load_course
 from followbot_sim.depth import depth_to_points
 from followbot_sim.diff_drive import (CommandWatchdog, DiffDriveLimits, KOBUKI_COMMAND_TIMEOUT_S,
                                       KOBUKI_MAX_ANGULAR_SPEED_RADPS, KOBUKI_MAX_LINEAR_SPEED_MPS,
                                       TIME_EPSILON_S)
 from followbot_sim.odometry import WheelOdometry
+from followbot_sim.realism import CLEAN, PRESET_NAMES, realise
 from followbot_sim.robots import (DEFAULT_ROBOT_SPACING_M, MAX_ROBOTS, MIN_ROBOT_SPACING_M,
                                   robot_names, robot_prefix)
 from followbot_sim.score import robot_simulator_name, score_status_name, SIMULATOR_NODE
@@ -37,7 +38,7 @@ from followbot_sim.trail import Trail
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
                                  FollowbotWorld, LEFT_WHEEL_JOINT, RenderingUnavailableError,
                                  RIGHT_WHEEL_JOINT, ViewerUnavailableError)
-from geometry_msgs.msg import Twist, TwistStamped
+from geometry_msgs.msg import Point32, PolygonStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -82,6 +83,13 @@ SIMULATOR_PARAMETERS = {
     'random_seed': ParameterSpec(
         0, 'Seed of the camera noise: the same seed and inputs give the same run.', 0,
         2 ** 31 - 1, read_only=True),
+    'realism': ParameterSpec(
+        '', 'How real the world and camera look: ' + ', '.join(PRESET_NAMES) + ' (see '
+        "docs); empty takes the course file's realism.preset, else clean.", read_only=True),
+    'realism_seed': ParameterSpec(
+        -1, 'Seed of the realistic world (floor, tape, lights, clutter, camera noise): the '
+        "same seed gives the same frames; -1 takes the course file's realism.seed, else 0.",
+        -1, 2 ** 31 - 1, read_only=True),
     'real_time_factor': ParameterSpec(
         1.0, 'Simulated seconds per wall second; 0 runs as fast as possible.', 0.0, 100.0),
     'lockstep': ParameterSpec(
@@ -124,6 +132,9 @@ SIMULATOR_PARAMETERS = {
         True, 'Publish camera/depth/image_raw and camera/depth/camera_info.', read_only=True),
     'point_cloud_enabled': ParameterSpec(
         True, 'Publish camera/depth/points.', read_only=True),
+    'line_truth_row_step_px': ParameterSpec(
+        10, 'Rows between the ground-truth samples of camera/rgb/line_truth (from row 0); '
+        'published only while someone subscribes.', 1, 1280, read_only=True),
     'horizontal_fov_deg': ParameterSpec(
         DEFAULT_HORIZONTAL_FOV_DEG, 'Camera horizontal field of view (Kinect: 60).', 10.0,
         150.0, read_only=True),
@@ -176,6 +187,29 @@ TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The overview draws each robot's trail in its own colour (BGR): red, blue, green, magenta...
 TRAIL_COLOURS_BGR = ((0, 0, 255), (255, 0, 0), (0, 160, 0), (255, 0, 255), (0, 140, 255),
                      (255, 255, 0), (0, 0, 128), (128, 0, 128))
+LINE_TRUTH_TOPIC = 'camera/rgb/line_truth'
+
+
+def fill_line_truth_polygon(msg: PolygonStamped, truth) -> PolygonStamped:
+    """
+    Write a frame's line truth into a PolygonStamped, the layout of ``camera/rgb/line_truth``.
+
+    One point per crossing of a sampled row by the line's centre: x = column and y = row in
+    pixels of the RGB image (pixel centres at integers), z = the line's width there in pixels
+    (> 0). A sampled row where the line is not seen gets one point x = NaN, y = row, z = 0.
+
+    :param msg: the message to fill (its header is left alone).
+    :param truth: the frame's :class:`followbot_sim.line_truth.LineTruth`.
+    :return: the message.
+    """
+    points = []
+    for row_px, crossings in zip(truth.rows_px, truth.crossings):
+        if len(crossings) == 0:
+            points.append(Point32(x=math.nan, y=float(row_px), z=0.0))
+        for column_px, width_px in crossings:
+            points.append(Point32(x=float(column_px), y=float(row_px), z=float(width_px)))
+    msg.polygon.points = points
+    return msg
 
 
 def _reached(time_s: float, target_s: float) -> bool:
@@ -207,6 +241,7 @@ class _Robot:
         self.commands_received = 0
         self.awaiting_command = False
         self.image_publisher = self.compressed_publisher = self.camera_info_publisher = None
+        self.line_truth_publisher = self.line_truth_msg = None
         self.depth_publisher = self.depth_info_publisher = self.points_publisher = None
 
     def frame(self, frame_id: str) -> str:
@@ -264,6 +299,7 @@ class SimulatorNode(Node):
         names = robot_names(parameters['robots'])
 
         course = load_course(parameters['course'], lighting=parameters['lighting_zones'])
+        realism = realise(*self._realism_choice(parameters))
         limits = DiffDriveLimits(
             max_linear_speed_mps=parameters['max_linear_speed_mps'],
             max_angular_speed_radps=parameters['max_angular_speed_radps'])
@@ -272,7 +308,7 @@ class SimulatorNode(Node):
             parameters['horizontal_fov_deg'], parameters['camera_pitch_deg'], limits=limits,
             camera_noise_stddev=parameters['camera_noise_stddev_levels'],
             noise_seed=parameters['random_seed'], robot_names=names,
-            robot_spacing_m=parameters['robot_spacing_m'])
+            robot_spacing_m=parameters['robot_spacing_m'], realism=realism)
         self._robots = [_Robot(index, name, parameters['command_timeout_s'], course, limits)
                         for index, name in enumerate(names)]
         for robot in self._robots:
@@ -338,10 +374,20 @@ class SimulatorNode(Node):
             pace += ', in lockstep with the follower'
         robots = ('' if len(names) == 1 and not names[0] else
                   f"{len(names)} robots ({', '.join(names)}), each ")
+        if realism.preset != CLEAN:
+            pace += f', realism {realism.preset} (seed {realism.seed}, {realism.floor} floor)'
         self.get_logger().info(
             f"Simulating course '{course.name}' ({course.length_m:.1f} m) with {robots}a "
             f'{width_px}x{height_px} camera at {camera_rate_hz:g} Hz, {pace}'
             f"{', paused' if self._paused else ''}.")
+
+    @staticmethod
+    def _realism_choice(parameters: dict) -> tuple:
+        """Return (preset, seed): the parameters, falling back on the course file's."""
+        from_file = course_file_realism(parameters['course']) or (CLEAN, 0)
+        preset = parameters['realism'] or from_file[0]
+        seed = parameters['realism_seed'] if parameters['realism_seed'] >= 0 else from_file[1]
+        return preset, seed
 
     def _open_viewer(self, wanted: bool) -> None:
         if not wanted:
@@ -353,6 +399,7 @@ class SimulatorNode(Node):
 
     def _make_publishers(self, parameters: dict) -> None:
         # REP-2003: sensor publishers are reliable; subscribers pick best effort if they like.
+        self._line_truth_row_step_px = parameters['line_truth_row_step_px']
         for robot in self._robots:
             self._make_robot_publishers(robot, parameters)
         width_px, height_px = self._world.image_size_px
@@ -382,7 +429,11 @@ class SimulatorNode(Node):
         topic = robot.prefix
         rgb_optical_frame = robot.frame(frames.CAMERA_RGB_OPTICAL_FRAME)
         depth_optical_frame = robot.frame(frames.CAMERA_DEPTH_OPTICAL_FRAME)
+        rgb_intrinsics, rgb_distortion = self._world.published_camera_model()
         if parameters['rgb_enabled']:
+            robot.line_truth_publisher = self.create_publisher(
+                PolygonStamped, topic + LINE_TRUTH_TOPIC, 10)
+            robot.line_truth_msg = PolygonStamped(header=Header(frame_id=rgb_optical_frame))
             robot.image_publisher = self.create_publisher(
                 Image, topic + 'camera/rgb/image_raw', 10)
             robot.compressed_publisher = self.create_publisher(
@@ -401,7 +452,9 @@ class SimulatorNode(Node):
         robot.image_msg = Image(header=Header(frame_id=rgb_optical_frame))
         robot.depth_msg = Image(header=Header(frame_id=depth_optical_frame))
         robot.points_msg = PointCloud2(header=Header(frame_id=depth_optical_frame))
-        robot.rgb_info_msg = messages.camera_info(intrinsics, size_px, rgb_optical_frame)
+        robot.rgb_info_msg = messages.camera_info(rgb_intrinsics, size_px, rgb_optical_frame)
+        # A realistic camera's lens: the raw image is distorted, as camera_info says.
+        robot.rgb_info_msg.d = [float(value) for value in rgb_distortion]
         robot.depth_info_msg = messages.camera_info(intrinsics, size_px, depth_optical_frame)
         robot.odom_publisher = self.create_publisher(Odometry, topic + 'odom', 10)
         robot.ground_truth_publisher = self.create_publisher(
@@ -739,6 +792,11 @@ class SimulatorNode(Node):
             robot.camera_info_publisher.publish(robot.rgb_info_msg)
             raw_wanted = robot.image_publisher.get_subscription_count() > 0
             compressed_wanted = robot.compressed_publisher.get_subscription_count() > 0
+            if robot.line_truth_publisher.get_subscription_count() > 0:
+                # Before rendering: the truth is of the state the frame shows.
+                fill_line_truth_polygon(robot.line_truth_msg, self._world.line_truth(
+                    self._line_truth_row_step_px, robot=robot.index)).header.stamp = stamp
+                robot.line_truth_publisher.publish(robot.line_truth_msg)
             if raw_wanted or compressed_wanted:
                 self._publish_rgb(robot, stamp, raw_wanted, compressed_wanted)
                 if self._lockstep and not self._paused and self._partner_present():

@@ -21,8 +21,12 @@ from followbot.frames import (BASE_FOOTPRINT_FRAME, BASE_LINK_FRAME, CAMERA_DEPT
                               CAMERA_RGB_OPTICAL_FRAME, FrameTransform, optical_rotation_xyzw,
                               quaternion_from_matrix, yaw_from_quaternion)
 from followbot.package_files import share_file
+from followbot_sim import appearance
+from followbot_sim.camera_model import CameraModel
 from followbot_sim.course import Course
 from followbot_sim.diff_drive import DiffDriveLimits, wheel_speeds_radps
+from followbot_sim.line_truth import line_truth, LineTruth, PinholeView, sampled_rows
+from followbot_sim.realism import Realism
 from followbot_sim.robots import (DEFAULT_ROBOT_SPACING_M, robot_prefix, SINGLE_ROBOT,
                                   start_arc_lengths_m)
 import mujoco
@@ -68,6 +72,9 @@ DEFAULT_MAX_DEPTH_M = KINECT_MAX_DEPTH_M
 MUJOCO_CAMERA_TO_BODY_AXES = np.array([[0.0, -1.0, 0.0],
                                        [0.0, 0.0, 1.0],
                                        [-1.0, 0.0, 0.0]])
+# ... and these flip MuJoCo's camera axes (x right, y up, looking along -z) to an optical
+# frame's (x right, y down, looking along +z).
+MUJOCO_CAMERA_TO_OPTICAL_AXES = np.diag([1.0, -1.0, -1.0])
 # A pixel where nothing was hit reads as the far clipping distance, up to float32 rounding.
 FAR_PLANE_FRACTION = 0.999
 # The noise bank holds this many frames' worth of values; each frame reads it from a random
@@ -153,7 +160,8 @@ class FollowbotWorld:
                  noise_seed: int = 0, min_depth_m: float = DEFAULT_MIN_DEPTH_M,
                  max_depth_m: float = DEFAULT_MAX_DEPTH_M,
                  robot_names: tuple[str, ...] = (SINGLE_ROBOT,),
-                 robot_spacing_m: float = DEFAULT_ROBOT_SPACING_M):
+                 robot_spacing_m: float = DEFAULT_ROBOT_SPACING_M,
+                 realism: Realism | None = None):
         """
         Load the scene, paint the course on the floor and put the robot at the course start.
 
@@ -180,6 +188,8 @@ class FollowbotWorld:
             prefixed ``<name>/``. The first starts at the course start, each next one
             ``robot_spacing_m`` behind the one before it along the line.
         :param robot_spacing_m: centre-to-centre distance between robots along the line.
+        :param realism: a world and camera drawn from a realism preset
+            (:func:`followbot_sim.realism.realise`); None or ``clean`` keeps the ideal scene.
         :raises ValueError: for a non-positive image size, a field of view outside (0, 180),
             a pitch outside [-90, 90], a negative or non-finite noise level, a negative seed or
             a depth range that is not 0 <= min < max, or robots that do not fit the course.
@@ -209,6 +219,7 @@ class FollowbotWorld:
             raise ValueError(f'{len(robot_names)} robots {robot_spacing_m} m apart do not fit '
                              f'on the {course.length_m:.1f} m course {course.name}.')
         self._course = course
+        self._realism = None if realism is None or realism.is_clean else realism
         self._limits = limits
         self._image_size_px = (image_width_px, image_height_px)
         self._camera_pitch_deg = float(camera_pitch_deg)
@@ -223,6 +234,8 @@ class FollowbotWorld:
         spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, image_width_px)
         spec.visual.global_.offheight = max(spec.visual.global_.offheight, image_height_px)
         self._fit_floor_to_course(spec)
+        if self._realism is not None:
+            appearance.furnish(spec, self._realism, course, FLOOR_GEOM)
         camera_fovy_deg = math.degrees(2.0 * math.atan((image_height_px / 2.0) / self._fx_px))
         for prefix in self._robot_prefixes():
             self._tilt_kinect(spec, camera_pitch_deg, prefix)
@@ -248,6 +261,9 @@ class FollowbotWorld:
         self._noise_stddev = float(camera_noise_stddev)
         self._noise_seed = int(noise_seed)
         self._noise_bank = None
+        self._painted_points = None
+        self._camera_model = None if self._realism is None else CameraModel(
+            self._realism, self.camera_intrinsics(), self._image_size_px)
         self.reset()
 
     def _robot_prefixes(self) -> list[str]:
@@ -305,6 +321,8 @@ class FollowbotWorld:
         texture_id = self.model.texture(COURSE_TEXTURE_NAME).id
         start = self.model.tex_adr[texture_id]
         texture = self._course.draw_texture(texture_size_px)
+        if self._realism is not None:
+            texture = appearance.paint_floor(texture, self._realism, self._course)
         self.model.tex_data[start:start + texture.size] = texture.reshape(-1)
 
     @property
@@ -363,6 +381,62 @@ class FollowbotWorld:
         """
         width_px, height_px = self._image_size_px
         return self._fx_px, self._fx_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0
+
+    def camera_view(self, robot: int = 0) -> PinholeView:
+        """
+        Return a robot's RGB camera pose and intrinsics as the next render will use them.
+
+        :param robot: the robot's index.
+        :return: the pinhole view (pose from the current state, optical-frame axes).
+        """
+        width_px, height_px = self._image_size_px
+        fx_px, fy_px, cx_px, cy_px = self.camera_intrinsics()
+        camera_id = self._robots[robot].camera_id
+        mujoco_axes = self.data.cam_xmat[camera_id].reshape(3, 3)
+        return PinholeView(self.data.cam_xpos[camera_id].copy(),
+                           mujoco_axes @ MUJOCO_CAMERA_TO_OPTICAL_AXES, fx_px, fy_px, cx_px,
+                           cy_px, width_px, height_px)
+
+    def line_truth(self, row_step_px: int = 1, distort=None, robot: int = 0) -> LineTruth:
+        """
+        Return where the course's centre line is drawn in a robot's RGB image right now.
+
+        :param row_step_px: report crossings at every this many rows, from row 0.
+        :param distort: the lens distortion of normalised coordinates the camera image has
+            (see :mod:`followbot_sim.line_truth`), None for the pinhole MuJoCo renders.
+        :param robot: the robot's index.
+        :return: the visible pieces of the centre line and its crossings of the sampled rows.
+        """
+        if self._painted_points is None:
+            points_xy = self._course.centre_line_xy
+            steps_m = np.hypot(*np.diff(points_xy, axis=0).T)
+            arc_m = np.concatenate([[0.0], np.cumsum(steps_m)])
+            self._painted_points = self._course.dash_signed_distance_m(arc_m) >= 0.0
+        view = self.camera_view(robot)
+        if self._camera_model is not None and distort is None:
+            # The camera's output, not MuJoCo's pinhole: camera_info's K and D.
+            fx_px, fy_px, cx_px, cy_px = self._camera_model.intrinsics
+            view = PinholeView(view.position_m, view.rotation, fx_px, fy_px, cx_px, cy_px,
+                               view.width_px, view.height_px)
+            distort = self._camera_model.distort
+        return line_truth(self._course.centre_line_xy, self._painted_points,
+                          self._course.line_width_m, view,
+                          sampled_rows(self._image_size_px[1], row_step_px), distort)
+
+    @property
+    def realism(self) -> Realism | None:
+        """Return the realistic world and camera in use, None for the clean scene."""
+        return self._realism
+
+    def published_camera_model(self) -> tuple:
+        """
+        Return what camera_info must say of the RGB image this world delivers.
+
+        :return: ((fx, fy, cx, cy) in pixels, plumb_bob D as a list of five).
+        """
+        if self._camera_model is None:
+            return self.camera_intrinsics(), [0.0] * 5
+        return self._camera_model.intrinsics, self._camera_model.distortion_coefficients
 
     def sensor_frames(self, robot: int = 0) -> list[FrameTransform]:
         """
@@ -596,6 +670,9 @@ class FollowbotWorld:
         renderer.disable_depth_rendering()
         renderer.update_scene(self.data, camera=self._robots[robot].camera_id)
         image = renderer.render(out=self._camera_image)
+        if self._camera_model is not None:
+            step_index = round(self.data.time / self.model.opt.timestep)
+            image = self._camera_model.process(image, step_index, *self.robot_twist(robot))
         if self._noise_bank is not None:
             self._add_camera_noise(image, robot)
         return image

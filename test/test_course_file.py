@@ -7,6 +7,7 @@ import textwrap
 from followbot_sim.course import BOOK_LINE_WIDTH_M
 from followbot_sim.course import Distractor
 from followbot_sim.course import LightingZone
+from followbot_sim.course_file import course_file_realism
 from followbot_sim.course_file import load_course
 from followbot_sim.course_file import load_course_file
 from followbot_sim.course_library import COURSES
@@ -69,6 +70,15 @@ def write_course_file(directory, text, file_name='course.yaml'):
     path = Path(directory) / file_name
     path.write_text(textwrap.dedent(text), encoding='utf-8')
     return path
+
+
+def test_realism_in_a_course_file_is_read_and_built_in_courses_have_none(tmp_path):
+    text = ('centre_line:\n  points: [[1.0, -1.0], [1.0, 2.0], [-2.0, -1.0]]\n'
+            'realism: {preset: warehouse, seed: 12}\n')
+    path = write_course_file(tmp_path, text)
+    assert course_file_realism(path) == ('warehouse', 12)
+    assert load_course_file(path).length_m > 0.0
+    assert course_file_realism('book_loop') is None
 
 
 # --- centre lines ----------------------------------------------------------------------------
@@ -177,6 +187,10 @@ def test_paint_options_are_applied(tmp_path):
      'lighting_zones: [{x_m: 0, y_m: 0, radius_m: 1, gain: -2}]\n',
      r'lighting_zones\[0\]: LightingZone gain must not be negative'),
     ('image:\n  start: [0, 0, 0]\n', 'image: needs the keys file'),
+    ('centre_line:\n  points: [[0, 0], [1, 0], [1, 1]]\nrealism: {preset: foggy}\n',
+     'realism.preset: must be one of clean, lab'),
+    ('centre_line:\n  points: [[0, 0], [1, 0], [1, 1]]\nrealism: {preset: lab, seed: -2}\n',
+     'realism.seed: must be a non-negative integer'),
     ('image:\n  file: no_such_image.png\n', 'image.file: no image file at'),
 ])
 def test_invalid_course_files_are_rejected_naming_the_file_and_key(tmp_path, text, message):

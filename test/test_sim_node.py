@@ -8,12 +8,14 @@ import math
 
 from conftest import SimHarness
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from followbot.frames import CAMERA_RGB_OPTICAL_FRAME
 from followbot_sim.score import score_status_name, score_values
-from followbot_sim.sim_node import SimulatorNode
-from geometry_msgs.msg import Twist, Vector3
+from followbot_sim.sim_node import LINE_TRUTH_TOPIC, SimulatorNode
+from geometry_msgs.msg import PolygonStamped, Twist, Vector3
 import pytest
 from rclpy.exceptions import ParameterException
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, Image
 
 COMMAND_TIMEOUT_S = 0.6
 FORWARD_SPEED_MPS = 0.3
@@ -106,3 +108,46 @@ def test_each_robots_score_is_named_after_its_simulator():
     assert score_values(scores, '/r2/followbot_sim') == {'robot': '/r2/followbot_sim'}
     assert score_values(scores, '/r3/followbot_sim') is None
     assert score_values(scores) == {'robot': '/r1/followbot_sim'}
+
+
+def test_line_truth_topic_gives_the_line_under_the_robot_stamped_like_the_image(sim):
+    truths = []
+    image_stamps = []
+    sim.client.create_subscription(PolygonStamped, LINE_TRUTH_TOPIC, truths.append, 10)
+    sim.client.create_subscription(
+        Image, 'camera/rgb/image_raw', lambda msg: image_stamps.append(msg.header.stamp), 10)
+    sim.spin_until(lambda: len(truths) >= 2 and len(image_stamps) >= 2)
+    truth = truths[-1]
+    assert truth.header.frame_id == CAMERA_RGB_OPTICAL_FRAME
+    stamps = [(stamp.sec, stamp.nanosec) for stamp in image_stamps]
+    assert (truth.header.stamp.sec, truth.header.stamp.nanosec) in stamps
+    rows = sorted({point.y for point in truth.polygon.points})
+    # Every 10th row from row 0 (the default step), each listed once at least.
+    assert rows == [float(row) for row in range(0, 480, 10)]
+    # The robot starts on the line, heading along it: the nearest rows see it mid-image.
+    bottom = [point for point in truth.polygon.points if point.y == 470.0]
+    assert len(bottom) == 1 and bottom[0].x == pytest.approx(319.5, abs=30.0)
+    # ~0.35 m ahead the 0.19 m line is ~300 px wide.
+    assert 200.0 < bottom[0].z < 400.0
+
+
+def test_realism_from_the_course_file_gives_camera_info_the_lens(ros_context, tmp_path):
+    course_file = tmp_path / 'lab_square.yaml'
+    course_file.write_text(
+        'centre_line:\n  start: [-1.0, -1.0, 0]\n  segments:\n'
+        + '    - {straight_m: 2.0}\n    - {arc_radius_m: 0.5, arc_angle_deg: 90}\n' * 4
+        + 'floor_size_m: 6.0\nrealism: {preset: lab, seed: 4}\n')
+    harness = SimHarness(ros_context, Parameter('course', value=str(course_file)),
+                         Parameter('depth_enabled', value=False),
+                         Parameter('point_cloud_enabled', value=False))
+    try:
+        infos = []
+        harness.client.create_subscription(CameraInfo, 'camera/rgb/camera_info',
+                                           infos.append, 10)
+        harness.spin_until(lambda: infos)
+        assert harness.world.realism.preset == 'lab' and harness.world.realism.seed == 4
+        fx_px, _, _, _ = harness.world.published_camera_model()[0]
+        assert infos[-1].d[0] == pytest.approx(harness.world.realism.radial_distortion_k1)
+        assert infos[-1].d[0] < 0.0 and infos[-1].k[0] == pytest.approx(fx_px)
+    finally:
+        harness.close()
