@@ -7,8 +7,11 @@ import subprocess
 import sys
 import time
 
+# Sets MUJOCO_GL (EGL, headless) before mujoco is first imported.
+import followbot_sim  # noqa: F401, I100
 from geometry_msgs.msg import Twist
 from hypothesis import HealthCheck, settings
+import mujoco
 import pytest
 from rcl_interfaces.msg import Log
 import rclpy
@@ -233,3 +236,13 @@ def sim(ros_context):
     harness = SimHarness(ros_context)
     yield harness
     harness.close()
+
+
+@pytest.fixture(scope='session')
+def opengl():
+    """Skip the test unless a ``mujoco.Renderer`` can be made here."""
+    try:
+        renderer = mujoco.Renderer(mujoco.MjModel.from_xml_string('<mujoco/>'), 8, 8)
+    except Exception as error:
+        pytest.skip(f'mujoco.Renderer cannot be created (no OpenGL context?): {error}')
+    renderer.close()

@@ -15,7 +15,6 @@ from followbot_sim.line_truth import line_truth
 from followbot_sim.line_truth import PinholeView
 from followbot_sim.line_truth import sampled_rows
 from followbot_sim.world import FollowbotWorld
-import mujoco
 import numpy as np
 import pytest
 
@@ -120,16 +119,6 @@ def test_sampled_rows_refuses_a_zero_step():
 def test_bad_view_is_refused_with_a_sentence():
     with pytest.raises(ValueError, match='3x3 rotation'):
         PinholeView(np.zeros(3), np.eye(2), 1.0, 1.0, 0.0, 0.0, 8, 8)
-
-
-@pytest.fixture(scope='module')
-def opengl():
-    """Skip the test unless a ``mujoco.Renderer`` can be made here."""
-    try:
-        renderer = mujoco.Renderer(mujoco.MjModel.from_xml_string('<mujoco/>'), 8, 8)
-    except Exception as error:
-        pytest.skip(f'mujoco.Renderer cannot be created (no OpenGL context?): {error}')
-    renderer.close()
 
 
 def drawn_line_centre_px(image_row):

@@ -34,16 +34,6 @@ WARNING_NAMES = tuple(name for name in mujoco.mjtWarning.__members__ if name != 
 
 
 @pytest.fixture(scope='module')
-def opengl():
-    """Skip the test unless a ``mujoco.Renderer`` can be made here."""
-    try:
-        renderer = mujoco.Renderer(mujoco.MjModel.from_xml_string('<mujoco/>'), 8, 8)
-    except Exception as error:
-        pytest.skip(f'mujoco.Renderer cannot be created (no OpenGL context?): {error}')
-    renderer.close()
-
-
-@pytest.fixture(scope='module')
 def course():
     """Build the book loop once."""
     return make_course(COURSE_NAME)

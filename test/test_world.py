@@ -174,16 +174,6 @@ def world(shared_world):
     return shared_world
 
 
-@pytest.fixture(scope='module')
-def opengl():
-    """Skip the test unless a ``mujoco.Renderer`` can be made here."""
-    try:
-        renderer = mujoco.Renderer(mujoco.MjModel.from_xml_string('<mujoco/>'), 8, 8)
-    except Exception as error:
-        pytest.skip(f'mujoco.Renderer cannot be created (no OpenGL context?): {error}')
-    renderer.close()
-
-
 @pytest.fixture(scope='module', params=IMAGE_SIZES_PX, ids=lambda size: '{}x{}'.format(*size))
 def camera_view(request, opengl, course):
     """
