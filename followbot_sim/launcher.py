@@ -30,7 +30,7 @@ from followbot.transport import environment_with_profile, keep_large_buffers, us
 from followbot_sim import soak
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
-from followbot_sim.run_recording import add_record_options, RunRecording
+from followbot_sim.run_recording import add_record_options, PAUSE_SERVICE, RunRecording
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.video import add_video_node, check_video_path, VideoPathError
@@ -41,6 +41,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Image
+from std_srvs.srv import SetBool
 
 STOP_GRACE_S = 5.0
 MONITOR_SPIN_S = 0.1
@@ -150,6 +151,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     if options.record and options.robots > 1:
         parser.error('--record records one robot: run several robots without it, or record '
                      'each in a launcher of its own under its namespace (-r __ns:=/robot1)')
+    if options.video and options.robots > 1:
+        parser.error('--video films one robot: run several robots without it, or film each '
+                     'in a launcher of its own under its namespace (-r __ns:=/robot1)')
     return options
 
 
@@ -460,8 +464,9 @@ def main(argv=None) -> int:
                           robots=labels if names != (SINGLE_ROBOT,) else None, context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(monitor)
+    video = None
     if options.video is not None:
-        add_video_node(executor, options.video, simulator_name, options.video_period_s)
+        video = add_video_node(executor, options.video, simulator_name, options.video_period_s)
     length = (f'{options.duration:g} s of simulated time' if options.duration
               else 'until Ctrl-C')
     pace = (f'real-time factor {options.real_time_factor:g}' if options.real_time_factor
@@ -509,7 +514,12 @@ def main(argv=None) -> int:
             rclpy.try_shutdown(context=context)
             return 2
         executor.add_node(recording.recorder)
+    # The video and the recording take the run from its first frame: the simulator starts
+    # paused and goes once they are connected (a fast lockstep run could be over before).
+    start_gate = None
+    if recording is not None or video is not None:
         simulator_parameters['start_paused'] = 'true'
+        start_gate = monitor.create_client(SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     followers = [ChildProcess('follower' + (f' {name}' if name else ''), _node_command(
@@ -526,6 +536,8 @@ def main(argv=None) -> int:
                 next_sample_s += options.soak_period
                 soak_samples.append(_soak_sample(
                     time.monotonic() - started_s, children, monitor.summaries))
+            if video is not None and not video.ready:
+                continue
             if recording is not None:
                 started = recording.started
                 if recording.poll() and not started:
@@ -533,6 +545,9 @@ def main(argv=None) -> int:
                           flush=True)
                 elif report := recording.wait_report():
                     print(f'[followbot] {report}', flush=True)
+            elif start_gate is not None and start_gate.service_is_ready():
+                start_gate.call_async(SetBool.Request(data=False))
+                start_gate = None
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.

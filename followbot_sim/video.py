@@ -146,15 +146,28 @@ class VideoNode(Node):
         self._frame_size = None
         # Camera frames written: the video's other frames repeat one (and time 0 has none).
         self._camera_frames_used = 0
-        self.create_subscription(Image, DEBUG_IMAGE_TOPIC, self.debug_image_callback, VIDEO_QOS)
-        self.create_subscription(Odometry, GROUND_TRUTH_TOPIC, self.ground_truth_callback,
-                                 POSE_QOS)
+        self._debug_image_subscription = self.create_subscription(
+            Image, DEBUG_IMAGE_TOPIC, self.debug_image_callback, VIDEO_QOS)
+        self._ground_truth_subscription = self.create_subscription(
+            Odometry, GROUND_TRUTH_TOPIC, self.ground_truth_callback, POSE_QOS)
         self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback, 10)
         self._parameters_client = self.create_client(GetParameters,
                                                      simulator + '/get_parameters')
         self._parameters_request = None
         # Asks as soon as the simulator's service appears (it starts after this node).
         self._ask_timer = self.create_timer(0.1, self.ask_simulator_callback)
+
+    @property
+    def ready(self) -> bool:
+        """
+        Tell whether the video can take the run from its first frame.
+
+        :return: True once the simulator said which course it runs and the follower's view and
+            the robot's pose have publishers this node is connected to.
+        """
+        return (self._schedule is not None
+                and self._debug_image_subscription.get_publisher_count() > 0
+                and self._ground_truth_subscription.get_publisher_count() > 0)
 
     def ask_simulator_callback(self) -> None:
         """Ask the simulator for its course and camera rate once its service is there."""

@@ -100,6 +100,7 @@ def test_a_parameters_file_is_a_configuration_named_by_its_stem(tmp_path):
     (['--robots', '3', '--configs', 'followbot,book'], '2 configurations for 3 robots'),
     (['--configs', 'followbot,nonesuch'], "'nonesuch' is neither a built-in configuration"),
     (['--robots', '0'], '--robots must be in 1..8'),
+    (['--robots', '2', '--video', 'race.mp4'], '--video films one robot'),
 ])
 def test_followbot_refuses_robots_and_configs_that_do_not_match(argv, message, capsys):
     with pytest.raises(SystemExit) as exit_info:
