@@ -47,8 +47,10 @@ from followbot.transport import (environment_without_profile, keep_large_buffers
 from followbot_sim import real_frames
 from followbot_sim.course_file import load_course
 from followbot_sim.perception_score import PerceptionTally, RIGHT
+from followbot_sim.realism import CLEAN, PRESET_NAMES, realise, Realism
 from followbot_sim.score import score_values
 from followbot_sim.score import SIMULATOR_NODE
+from followbot_sim.scorecard import LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.world import FollowbotWorld
 import mujoco
 import numpy as np
@@ -59,6 +61,11 @@ from rclpy.node import Node
 from std_srvs.srv import SetBool
 
 SECTIONS = ('perception', 'real_frames', 'latency', 'simulation')
+# The realism presets whose simulator speed is measured side by side (issue 14's targets: lab
+# and home at 3x real time or more), the preset of the realistic perception row, and the seed.
+SIMULATION_REALISM = (CLEAN, 'lab', 'home')
+PERCEPTION_REALISM = 'home'
+REALISM_SEED = 1
 # Encodings of real cameras timed besides bgr8 and JPEG: a USB webcam's and a raw sensor's.
 CAMERA_ENCODINGS = ('yuv422_yuy2', 'bayer_rggb8')
 COURSE = 'book_loop'
@@ -101,16 +108,18 @@ def _markdown_table(header: list, rows: list) -> str:
     return '\n'.join(lines)
 
 
-def render_course_frames(frame_count: int, course_name: str = COURSE) -> tuple:
+def render_course_frames(frame_count: int, course_name: str = COURSE,
+                         realism: Realism | None = None) -> tuple:
     """
     Render the robot's camera at poses spread evenly around a course, in driving order.
 
     :param frame_count: how many frames.
     :param course_name: a built-in course or a course file.
+    :param realism: the realistic world and camera to render, None for the clean scene.
     :return: ((N, H, W, 3) uint8 BGR frames, (fx, fy, cx, cy) intrinsics).
     """
     course = load_course(course_name)
-    world = FollowbotWorld(course, IMAGE_WIDTH_PX, IMAGE_HEIGHT_PX)
+    world = FollowbotWorld(course, IMAGE_WIDTH_PX, IMAGE_HEIGHT_PX, realism=realism)
     try:
         frames_bgr = np.empty((frame_count, IMAGE_HEIGHT_PX, IMAGE_WIDTH_PX, 3), np.uint8)
         for index in range(frame_count):
@@ -198,7 +207,8 @@ def _in_encoding(frame_bgr: np.ndarray, encoding: str):
                           encoding)
 
 
-def measure_perception(frames_bgr: np.ndarray, repeats: int, intrinsics: tuple) -> dict:
+def measure_perception(frames_bgr: np.ndarray, repeats: int, intrinsics: tuple,
+                       realistic_bgr: np.ndarray | None = None) -> dict:
     """
     Time the follower's detector and the book's pipeline on the same frames.
 
@@ -208,13 +218,17 @@ def measure_perception(frames_bgr: np.ndarray, repeats: int, intrinsics: tuple) 
     :param repeats: times each frame is processed (in order, so the follower's detector keeps
         its expectations from frame to frame as in a run).
     :param intrinsics: (fx, fy, cx, cy) of the frames, for the follower's camera geometry.
+    :param realistic_bgr: the same poses rendered under a realism preset, or None.
     :return: per pipeline: ``median_us``, ``p99_us``, ``calls``; and ``frames``.
     """
     image_messages = [array_to_image(frame, 'bgr8') for frame in frames_bgr]
+    realistic = ([] if realistic_bgr is None
+                 else [array_to_image(frame, 'bgr8') for frame in realistic_bgr])
     # What other cameras send of the same frames: each pipeline starts from its own messages.
     messages_by_input = {
         'bgr8': image_messages,
         'jpeg': [array_to_compressed(frame, 'bgr8') for frame in frames_bgr],
+        'realistic': realistic,
         **{encoding: [_in_encoding(frame, encoding) for frame in frames_bgr]
            for encoding in CAMERA_ENCODINGS},
     }
@@ -245,6 +259,9 @@ def measure_perception(frames_bgr: np.ndarray, repeats: int, intrinsics: tuple) 
         **{f'follower_{encoding}': lambda msg: follow((image_to_array(msg), msg.encoding))
            for encoding in CAMERA_ENCODINGS},
     }
+    if realistic:
+        pipelines['follower_realistic'] = (
+            lambda msg: follow((image_to_array(msg), msg.encoding)))
     results = {'frames': len(image_messages)}
     for name, pipeline in pipelines.items():
         kind = name.removeprefix('follower_') if name.startswith('follower_') else 'bgr8'
@@ -275,12 +292,14 @@ def format_perception(results: dict) -> str:
         'book_opencv_only': "the book's OpenCV steps alone (no copy)",
         'follower_bgr8': 'the follower: bgr8 Image, with the camera geometry',
         'follower_jpeg': 'the follower: JPEG CompressedImage (decode + detect)',
+        'follower_realistic': f'the follower: bgr8 Image of the {PERCEPTION_REALISM} preset '
+                              f'(seed {REALISM_SEED}), with the camera geometry',
         **{f'follower_{encoding}': f'the follower: {encoding} Image (convert + detect)'
            for encoding in CAMERA_ENCODINGS},
     }
     rows = [(label, _number(results[key]['median_us']), _number(results[key]['p99_us']),
              f"{book_us / results[key]['median_us']:.1f}×")
-            for key, label in names.items()]
+            for key, label in names.items() if key in results]
     return _markdown_table(['pipeline, Image message to line position', 'median µs',
                             'p99 µs', 'book ÷ this (median)'], rows)
 
@@ -517,7 +536,7 @@ class _ScoreListener(Node):
 
 
 def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
-                       stop: StopSignals) -> dict:
+                       stop: StopSignals, realism: str = CLEAN) -> dict:
     """
     Run the simulator and the follower as two processes in lockstep, as fast as possible.
 
@@ -525,6 +544,7 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
     :param domain_id: a ROS domain no one else uses while this runs.
     :param log_folder: where the processes' logs go.
     :param stop: ends the run early when set.
+    :param realism: the realism preset of the world (seed REALISM_SEED).
     :return: ``simulated_per_wall`` (from the score messages' arrival times), ``simulated_s``,
         ``wall_s``, ``laps``, ``rms_cm``, peak memories (MiB), or ``error``.
     """
@@ -535,8 +555,9 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(listener)
     follower = ChildProcess('followbot.follower_node', [
-        '--ros-args', '-p', 'use_sim_time:=true', '--log-level', 'warn'],
-        environment, log_folder / 'follower_simulation.log')
+        '--ros-args', '-p', 'use_sim_time:=true', '-p',
+        f'image_timeout_s:={LOCKSTEP_IMAGE_TIMEOUT_S}', '--log-level', 'warn'],
+        environment, log_folder / f'follower_simulation_{realism}.log')
     # Started paused, and let go once this process hears its score: a fast run could
     # otherwise be over before discovery has connected the listener.
     simulator = ChildProcess('followbot_sim.sim_node', [
@@ -544,9 +565,10 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
         '-p', 'start_paused:=true',
         '-p', f'run_duration_s:={float(simulated_s)}', '-p', f'course:={COURSE}',
         '-p', f'image_width_px:={IMAGE_WIDTH_PX}', '-p', f'image_height_px:={IMAGE_HEIGHT_PX}',
-        '-p', f'camera_rate_hz:={CAMERA_RATE_HZ}', '-p', 'score_period_s:=1.0'],
-        environment, log_folder / 'sim_simulation.log')
-    result = {'simulated_s': simulated_s, 'profile': NOTHING_EXPORTED}
+        '-p', f'camera_rate_hz:={CAMERA_RATE_HZ}', '-p', 'score_period_s:=1.0',
+        '-p', f'realism:={realism}', '-p', f'realism_seed:={REALISM_SEED}'],
+        environment, log_folder / f'sim_simulation_{realism}.log')
+    result = {'simulated_s': simulated_s, 'profile': NOTHING_EXPORTED, 'realism': realism}
     try:
         deadline_s = time.monotonic() + PROCESS_GRACE_S
         while not (listener.subscription.get_publisher_count() > 0
@@ -588,23 +610,25 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
     return result
 
 
-def format_simulation(result: dict) -> str:
+def format_simulation(results: list) -> str:
     """
-    Make the simulator-speed table.
+    Make the simulator-speed table, one row per realism preset.
 
-    :param result: from :func:`measure_simulation`.
+    :param results: from :func:`measure_simulation`, one per preset.
     :return: Markdown.
     """
-    if 'error' in result:
-        return f"Simulation failed: {result['error']}"
-    row = (f'{IMAGE_WIDTH_PX}x{IMAGE_HEIGHT_PX} at {CAMERA_RATE_HZ:g} Hz, lockstep',
-           f"{result['measured_simulated_s']:.0f}", f"{result['wall_s']:.1f}",
-           f"{result['simulated_per_wall']:.2f}×", result['laps'],
-           f"{result['rms_cm']:.1f} / {result['max_cm']:.1f}",
-           _number(result['peak_memory_simulator_mib'], 0),
-           _number(result['peak_memory_follower_mib'], 0))
-    return _markdown_table(['camera', 'simulated s', 'wall s', 'real time ×', 'laps',
-                            'RMS / max cm', 'simulator peak MiB', 'follower peak MiB'], [row])
+    rows = []
+    for result in results:
+        if 'error' in result:
+            rows.append((result['realism'], 'failed', '', '', '', '', '', ''))
+            continue
+        rows.append((result['realism'], f"{result['measured_simulated_s']:.0f}",
+                     f"{result['wall_s']:.1f}", f"{result['simulated_per_wall']:.2f}×",
+                     result['laps'], f"{result['rms_cm']:.1f} / {result['max_cm']:.1f}",
+                     _number(result['peak_memory_simulator_mib'], 0),
+                     _number(result['peak_memory_follower_mib'], 0)))
+    return _markdown_table(['realism (seed 1)', 'simulated s', 'wall s', 'real time ×', 'laps',
+                            'RMS / max cm', 'simulator peak MiB', 'follower peak MiB'], rows)
 
 
 def machine_description() -> str:
@@ -638,6 +662,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='latency: comma-separated frame rates in Hz (default: 20,30)')
     parser.add_argument('--simulated-seconds', type=float, default=60.0,
                         help='simulation: simulated seconds to run (default: 60)')
+    parser.add_argument('--realism', default=','.join(SIMULATION_REALISM),
+                        help='simulation: comma-separated realism presets to run, side by side '
+                             f"(default: {','.join(SIMULATION_REALISM)})")
     parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
                         help='ROS domain of the runs, which take turns in it (default: from '
                              'the process id, in 100..199)')
@@ -652,6 +679,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     unknown = sorted(set(options.sections) - set(SECTIONS))
     if unknown or not options.sections:
         parser.error(f'--sections takes {", ".join(SECTIONS)}; got {options.sections}')
+    options.realism = [name.strip() for name in options.realism.split(',') if name.strip()]
+    if not options.realism or set(options.realism) - set(PRESET_NAMES):
+        parser.error(f'--realism takes {", ".join(PRESET_NAMES)}; got {options.realism}')
     try:
         options.rates = [float(rate) for rate in options.rates.split(',')]
     except ValueError:
@@ -685,8 +715,13 @@ def main(argv=None) -> int:
         needs_frames = {'perception', 'latency'} & set(options.sections)
         if needs_frames:
             frames_bgr, intrinsics = render_course_frames(options.frames)
+        realistic_bgr = None
+        if 'perception' in options.sections:
+            realistic_bgr, _ = render_course_frames(
+                options.frames, realism=realise(PERCEPTION_REALISM, REALISM_SEED))
         if 'perception' in options.sections and not stop.is_set():
-            perception = measure_perception(frames_bgr, options.repeats, intrinsics)
+            perception = measure_perception(frames_bgr, options.repeats, intrinsics,
+                                            realistic_bgr)
             report['perception'] = perception
             print(f'## Perception per {IMAGE_WIDTH_PX}x{IMAGE_HEIGHT_PX} frame '
                   f"({perception['frames']} frames rendered around {COURSE}, each "
@@ -716,12 +751,17 @@ def main(argv=None) -> int:
                 if 'error' in result:
                     print(f"{result['rate_hz']:g} Hz, {result['profile']}: {result['error']}")
         if 'simulation' in options.sections and not stop.is_set():
-            simulation = measure_simulation(options.simulated_seconds, options.domain_id,
-                                            folder, stop)
+            simulation = [measure_simulation(options.simulated_seconds, options.domain_id,
+                                             folder, stop, preset)
+                          for preset in options.realism if not stop.is_set()]
             report['simulation'] = simulation
-            failed |= 'error' in simulation
-            print('## Simulator with the follower in the loop (two processes, headless, as fast '
-                  f'as possible)\n\n{format_simulation(simulation)}\n', flush=True)
+            failed |= any('error' in result for result in simulation)
+            print('## Simulator with the follower in the loop (two processes, headless, '
+                  f'lockstep, as fast as possible, {IMAGE_WIDTH_PX}x{IMAGE_HEIGHT_PX} at '
+                  f'{CAMERA_RATE_HZ:g} Hz)\n\n{format_simulation(simulation)}\n', flush=True)
+            for result in simulation:
+                if 'error' in result:
+                    print(f"{result['realism']}: {result['error']}")
     report['peak_memory_benchmark_mib'] = (
         resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / KIB_PER_MIB)
     if options.json is not None:

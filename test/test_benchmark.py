@@ -60,6 +60,8 @@ def test_book_pipeline_sees_nothing_without_yellow():
     ['--frames', '0'],
     ['--simulated-seconds', '1'],
     ['--domain-id', '300'],
+    ['--realism', 'clean,sunny'],
+    ['--realism', ''],
 ])
 def test_bad_options_are_refused(arguments, capsys):
     with pytest.raises(SystemExit) as exit_info:
@@ -75,7 +77,8 @@ def test_a_short_benchmark_measures_every_section(tmp_path):
     completed = subprocess.run(
         [sys.executable, '-m', 'followbot_sim.benchmark', '--frames', str(FRAME_COUNT),
          '--repeats', '2', '--latency-frames', str(LATENCY_FRAMES), '--rates', '30',
-         '--simulated-seconds', str(SIMULATED_S), '--domain-id', str(run_domain_id()),
+         '--simulated-seconds', str(SIMULATED_S), '--realism', 'clean,lab',
+         '--domain-id', str(run_domain_id()),
          '--json', str(figures_file)],
         env=environment, capture_output=True, text=True, timeout=BENCHMARK_TIMEOUT_S)
     assert completed.returncode == 0, completed.stdout + completed.stderr
@@ -87,7 +90,7 @@ def test_a_short_benchmark_measures_every_section(tmp_path):
     perception = report['perception']
     for pipeline in ('followbot', 'followbot_book_band', 'book_full_frame',
                      'book_opencv_only', 'follower_bgr8', 'follower_jpeg',
-                     'follower_yuv422_yuy2', 'follower_bayer_rggb8'):
+                     'follower_yuv422_yuy2', 'follower_bayer_rggb8', 'follower_realistic'):
         assert perception[pipeline]['calls'] == 2 * FRAME_COUNT
         assert 0.0 < perception[pipeline]['median_us'] <= perception[pipeline]['p99_us']
 
@@ -118,9 +121,10 @@ def test_a_short_benchmark_measures_every_section(tmp_path):
         for row in real['rows']:
             assert row['right'] + row['false'] + row['missed'] == row['bands'] > 0
 
-    simulation = report['simulation']
-    assert 'error' not in simulation, simulation.get('error')
-    assert simulation['simulated_per_wall'] > 0.0
-    assert simulation['measured_simulated_s'] >= SIMULATED_S - 2.0
-    assert simulation['rms_cm'] < 3.0
-    assert simulation['peak_memory_simulator_mib'] > simulation['peak_memory_follower_mib'] > 0
+    assert [result['realism'] for result in report['simulation']] == ['clean', 'lab']
+    for simulation in report['simulation']:
+        assert 'error' not in simulation, simulation.get('error')
+        assert simulation['simulated_per_wall'] > 0.0
+        assert simulation['measured_simulated_s'] >= SIMULATED_S - 2.0
+        assert simulation['rms_cm'] < 3.0
+        assert simulation['peak_memory_simulator_mib'] > simulation['peak_memory_follower_mib'] > 0
