@@ -510,8 +510,13 @@ class SimulatorNode(Node):
 
     @property
     def finished(self) -> bool:
-        """Return whether ``run_duration_s`` of simulated time has passed."""
-        return self._finished
+        """
+        Return whether the run is over: ``run_duration_s`` of simulated time has passed.
+
+        In lockstep the last frame's answer is awaited too (or its lockstep timeout), so that
+        every frame of the run has its command, for the robot and for a recording alike.
+        """
+        return self._finished and not self._awaiting_command
 
     @property
     def commands_received(self) -> int:
