@@ -30,7 +30,8 @@ from followbot.transport import environment_with_profile, keep_large_buffers, us
 from followbot_sim import soak
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
-from followbot_sim.run_recording import add_record_options, PAUSE_SERVICE, RunRecording
+from followbot_sim.run_recording import (add_record_options, PAUSE_SERVICE, PauseRequests,
+                                         RunRecording)
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.video import add_video_node, check_video_path, VideoPathError
@@ -519,7 +520,8 @@ def main(argv=None) -> int:
     start_gate = None
     if recording is not None or video is not None:
         simulator_parameters['start_paused'] = 'true'
-        start_gate = monitor.create_client(SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
+        start_gate = PauseRequests(monitor.create_client(
+            SetBool, f'{simulator_name}/{PAUSE_SERVICE}'))
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     followers = [ChildProcess('follower' + (f' {name}' if name else ''), _node_command(
@@ -545,9 +547,10 @@ def main(argv=None) -> int:
                           flush=True)
                 elif report := recording.wait_report():
                     print(f'[followbot] {report}', flush=True)
-            elif start_gate is not None and start_gate.service_is_ready():
-                start_gate.call_async(SetBool.Request(data=False))
-                start_gate = None
+            elif start_gate is not None:
+                if not start_gate.asked:
+                    start_gate.ask(False)
+                start_gate.poll()
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
