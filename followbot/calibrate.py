@@ -27,7 +27,8 @@ from followbot.image_conversion import image_to_array, ImageConversionError, to_
 from followbot.line_detector import band_rows, DetectorConfig
 from followbot.line_sample import CalibrationError
 from followbot.node_runner import init_rclpy, RosStartError, split_ros_arguments
-from mcap.exceptions import McapError
+# The recording format's magic bytes and read errors (a damaged lz4/zstd chunk among them).
+from followbot.recording import MCAP_MAGIC, READ_ERRORS
 from mcap.reader import make_reader, NonSeekingReader
 import rclpy
 from rclpy.context import Context
@@ -45,15 +46,12 @@ EXIT_INTERRUPTED = 130
 DEFAULT_PICTURE = 'calibration.png'
 PICTURE_SUFFIX = '.png'
 RECORDING_SUFFIX = '.mcap'
-MCAP_MAGIC = b'\x89MCAP0\r\n'
 DEFAULT_TIMEOUT_S = 10.0
 SPIN_S = 0.1
 # The image message types a frame can come in, by their names in recordings and the graph.
 IMAGE_TYPES = {'sensor_msgs/msg/Image': Image, 'sensor_msgs/Image': Image,
                'sensor_msgs/msg/CompressedImage': CompressedImage,
                'sensor_msgs/CompressedImage': CompressedImage}
-# What the mcap library raises on a file that ends early or holds a broken record.
-READ_ERRORS = (McapError, ValueError, EOFError, OSError)
 GREY_ENCODING = 'mono8'
 COLOUR_ENCODING = 'bgr8'
 CAMERA_OPTIONS = ('camera_info', 'camera_height_m', 'camera_pitch_deg')
