@@ -164,6 +164,9 @@ FOLLOWER_PARAMETERS = {
         "each command answers (as Jazzy's Nav2 and ros2_control take it), instead of Twist.",
         read_only=True),
 }
+# The camera watchdog's longest setting: for runs whose frames come at the pace of a machine
+# rather than of a camera (lockstep simulation, replay), where a stall is no lost camera.
+LONGEST_IMAGE_TIMEOUT_S = FOLLOWER_PARAMETERS['image_timeout_s'].high
 
 
 @dataclasses.dataclass(frozen=True)

@@ -23,7 +23,7 @@ import time
 
 from followbot.command_comparison import (answers_by_order, answers_by_status, Comparison,
                                           FrameResult, Velocity)
-from followbot.follower_node import COMPRESSED_SUFFIX, FOLLOWER_PARAMETERS, FollowerNode
+from followbot.follower_node import COMPRESSED_SUFFIX, FollowerNode, LONGEST_IMAGE_TIMEOUT_S
 from followbot.node_runner import init_rclpy, RosStartError
 from followbot.recording import (header_stamp_ns, import_message_class, read_messages,
                                  RecordingError)
@@ -64,7 +64,6 @@ EXIT_MATCH, EXIT_DIFFER, EXIT_UNUSABLE = 0, 1, 2
 # The follower stops when no frame came for image_timeout_s of wall time. A replay's pace is
 # not the camera's (the machine may stall it): the replayed follower waits as long as it may.
 IMAGE_TIMEOUT_PARAMETER = 'image_timeout_s'
-REPLAY_IMAGE_TIMEOUT_S = FOLLOWER_PARAMETERS[IMAGE_TIMEOUT_PARAMETER].high
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:
@@ -295,7 +294,7 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
         cli_args=['--ros-args', '-r', f'{CLOCK_TOPIC}:={namespace}/{REPLAY_CLOCK_TOPIC}'],
         parameter_overrides=[
             Parameter('use_sim_time', value=True),
-            Parameter(IMAGE_TIMEOUT_PARAMETER, value=float(REPLAY_IMAGE_TIMEOUT_S)),
+            Parameter(IMAGE_TIMEOUT_PARAMETER, value=float(LONGEST_IMAGE_TIMEOUT_S)),
             Parameter('image_transport', value='compressed' if compressed else 'raw')])
     feeder = ReplayFeeder(compressed, follower.get_parameter('cmd_vel_stamped').value,
                           context=context, namespace=namespace)

@@ -31,7 +31,7 @@ import socket
 import sys
 import time
 
-from followbot.follower_node import FollowerNode
+from followbot.follower_node import FollowerNode, LONGEST_IMAGE_TIMEOUT_S
 from followbot.node_runner import refuse_ros_arguments, StopSignals
 from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
@@ -148,7 +148,7 @@ class Configuration:
 # watchdog (0.5 s by default, for real robots and real time) would only stop the robot whenever
 # the machine is loaded, and make lockstep runs depend on the load; these runs give it its
 # longest setting, so it still catches a simulator that died.
-LOCKSTEP_IMAGE_TIMEOUT_S = 10.0
+LOCKSTEP_IMAGE_TIMEOUT_S = LONGEST_IMAGE_TIMEOUT_S
 SCENARIOS = {
     **{name: Scenario(name, name) for name in COURSES},
     'book_loop_light_noise': Scenario(
