@@ -45,6 +45,7 @@ from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSig
 from followbot.transport import (environment_without_profile, keep_large_buffers,
                                  USER_CONFIGURATION_VARIABLES)
 from followbot_sim import real_frames
+from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.course_file import load_course
 from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.realism import CLEAN, PRESET_NAMES, realise, Realism
@@ -576,13 +577,15 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
             if stop.is_set() or time.monotonic() > deadline_s or not simulator.running():
                 break
             executor.spin_once(timeout_sec=POLL_S)
-        listener.pause_client.call_async(SetBool.Request(data=False))
+        start = AnsweredRequests(listener.pause_client)
+        start.ask(SetBool.Request(data=False))
         deadline_s = time.monotonic() + simulated_s + PROCESS_GRACE_S
         while simulator.running() and not stop.is_set():
             if time.monotonic() > deadline_s:
                 result['error'] = 'the simulator did not finish in time'
                 break
             executor.spin_once(timeout_sec=POLL_S)
+            start.poll()
         # The last score is published as the run ends: take what is still on its way.
         end_s = time.monotonic() + LAST_SCORE_WAIT_S
         while time.monotonic() < end_s:

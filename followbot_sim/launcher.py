@@ -28,10 +28,11 @@ from followbot.package_files import share_file
 from followbot.recording import RecordingError
 from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim import soak
+from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
-from followbot_sim.run_recording import (add_record_options, PAUSE_SERVICE, PauseRequests,
-                                         RunRecording)
+from followbot_sim.run_recording import (add_record_options, PAUSE_SERVICE, RunRecording,
+                                         WAIT_REPORT_S)
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.video import add_video_node, check_video_path, VideoPathError
@@ -520,7 +521,7 @@ def main(argv=None) -> int:
     start_gate = None
     if recording is not None or video is not None:
         simulator_parameters['start_paused'] = 'true'
-        start_gate = PauseRequests(monitor.create_client(
+        start_gate = AnsweredRequests(monitor.create_client(
             SetBool, f'{simulator_name}/{PAUSE_SERVICE}'))
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
@@ -531,6 +532,7 @@ def main(argv=None) -> int:
     children = (simulator, *followers)
     soak_samples = []
     started_s = next_sample_s = time.monotonic()
+    video_wait_reported = False
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
@@ -539,6 +541,10 @@ def main(argv=None) -> int:
                 soak_samples.append(_soak_sample(
                     time.monotonic() - started_s, children, monitor.summaries))
             if video is not None and not video.ready:
+                if not video_wait_reported and time.monotonic() - started_s > WAIT_REPORT_S:
+                    video_wait_reported = True
+                    print(f'[followbot] Simulation held for {WAIT_REPORT_S:g} s: the video still '
+                          f'waits for {", ".join(video.waiting_for())}.', flush=True)
                 continue
             if recording is not None:
                 started = recording.started
@@ -549,7 +555,7 @@ def main(argv=None) -> int:
                     print(f'[followbot] {report}', flush=True)
             elif start_gate is not None:
                 if not start_gate.asked:
-                    start_gate.ask(False)
+                    start_gate.ask(SetBool.Request(data=False))
                 start_gate.poll()
     finally:
         # The simulator ends on its own after --duration; stop the follower first so its

@@ -11,9 +11,9 @@ it unscheduled), so its queues never overflow; held time is wall time only, simu
 stands still.
 """
 
-import math
 import time
 
+from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.recorder import Recorder
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool
@@ -36,8 +36,6 @@ RUN_TOPICS = (
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 RECORDER_ODOMETRY_TOPIC = 'odom'
 PAUSE_SERVICE = 'pause'
-# Wall seconds before an unanswered pause or run request is sent again.
-PAUSE_RETRY_S = 1.0
 BYTES_PER_MEGABYTE = 1e6
 NANOSECONDS = 1e9
 # After a run, the recorder works through what it still holds until nothing has come for this
@@ -90,53 +88,6 @@ def add_record_options(parser, one_file_per_run: bool = False) -> None:
                              '13 MB per simulated minute instead of 50 MB raw')
 
 
-class PauseRequests:
-    """
-    Ask a simulator to pause or run, again until it answers.
-
-    A service can look ready to a client before its request reaches the server (DDS matches
-    the request and the reply topics one by one): a request sent then is lost, and a simulator
-    started paused would wait for ever. The last wish is sent again until it is answered.
-    """
-
-    def __init__(self, client):
-        """
-        Use a ``std_srvs/SetBool`` client of the simulator's pause service.
-
-        :param client: the client; None when there is no simulator to ask.
-        """
-        self._client = client
-        self._paused = None
-        self._future = None
-        self._sent_s = -math.inf
-
-    @property
-    def asked(self) -> bool:
-        """Return whether a state has been asked for."""
-        return self._paused is not None
-
-    def ask(self, paused: bool) -> None:
-        """Ask for a state (``True`` paused); :meth:`poll` sends it until it is answered."""
-        self._paused = paused
-        self._future = None
-        self.poll()
-
-    def poll(self) -> bool:
-        """
-        Send the last wish again if its request went unanswered for a while.
-
-        :return: whether the simulator answered the last wish.
-        """
-        if self._client is None or self._paused is None:
-            return True
-        if self._future is not None and self._future.done():
-            return True
-        if time.monotonic() - self._sent_s >= PAUSE_RETRY_S and self._client.service_is_ready():
-            self._future = self._client.call_async(SetBool.Request(data=self._paused))
-            self._sent_s = time.monotonic()
-        return False
-
-
 class RunRecording:
     """A Recorder on simulated time that lets a paused simulator go once it hears everything."""
 
@@ -162,7 +113,7 @@ class RunRecording:
             progress_topic=clock_topic, **kwargs)
         self._pause_client = None if simulator_name is None else self.recorder.create_client(
             SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
-        self._pause_requests = PauseRequests(self._pause_client)
+        self._pause_requests = AnsweredRequests(self._pause_client)
         self.started = False
         self.holding = False
         self.holds = 0
@@ -209,7 +160,7 @@ class RunRecording:
         return holding
 
     def _set_paused(self, paused: bool) -> None:
-        self._pause_requests.ask(paused)
+        self._pause_requests.ask(SetBool.Request(data=paused))
 
     def wait_report(self) -> str | None:
         """

@@ -20,6 +20,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from followbot import messages
 from followbot.follower_node import NODE_NAME as FOLLOWER_NODE
 from followbot.image_conversion import image_to_array, ImageConversionError, to_bgr
+from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.course_file import load_course
 from followbot_sim.score import score_values
 from followbot_sim.topdown import side_by_side, TopDownView
@@ -43,6 +44,8 @@ POSE_QOS = QoSProfile(depth=100)
 # Stamps of a period's boundary and of a camera frame agree to this much (float rounding).
 STAMP_TOLERANCE_S = 1e-6
 BYTES_PER_MB = 1e6
+# Wall seconds between looks for the simulator's parameter service and its answer.
+ASK_PERIOD_S = 0.1
 
 
 class VideoPathError(ValueError):
@@ -151,11 +154,11 @@ class VideoNode(Node):
         self._ground_truth_subscription = self.create_subscription(
             Odometry, GROUND_TRUTH_TOPIC, self.ground_truth_callback, POSE_QOS)
         self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback, 10)
-        self._parameters_client = self.create_client(GetParameters,
-                                                     simulator + '/get_parameters')
-        self._parameters_request = None
-        # Asks as soon as the simulator's service appears (it starts after this node).
-        self._ask_timer = self.create_timer(0.1, self.ask_simulator_callback)
+        self._parameters_request = AnsweredRequests(
+            self.create_client(GetParameters, simulator + '/get_parameters'))
+        # Asks as soon as the simulator's service appears (it starts after this node), and
+        # again until it answers.
+        self._ask_timer = self.create_timer(ASK_PERIOD_S, self.ask_simulator_callback)
 
     @property
     def ready(self) -> bool:
@@ -163,23 +166,36 @@ class VideoNode(Node):
         Tell whether the video can take the run from its first frame.
 
         :return: True once the simulator said which course it runs and the follower's view and
-            the robot's pose have publishers this node is connected to.
+            the robot's pose have publishers this node is connected to; True also once the
+            video has failed, as the run then goes on without it.
         """
-        return (self._schedule is not None
-                and self._debug_image_subscription.get_publisher_count() > 0
-                and self._ground_truth_subscription.get_publisher_count() > 0)
+        return not self.waiting_for()
+
+    def waiting_for(self) -> list:
+        """
+        Say what the video still waits for before the run may start.
+
+        :return: one phrase per missing thing; empty when :attr:`ready`.
+        """
+        missing = []
+        if self._failed:
+            return missing
+        if self._schedule is None:
+            missing.append(f"{self._simulator}'s course")
+        for subscription in (self._debug_image_subscription, self._ground_truth_subscription):
+            if subscription.get_publisher_count() == 0:
+                missing.append(f'a publisher of {subscription.topic_name}')
+        return missing
 
     def ask_simulator_callback(self) -> None:
-        """Ask the simulator for its course and camera rate once its service is there."""
-        if self._parameters_request is not None or not self._parameters_client.service_is_ready():
-            return
-        self._ask_timer.cancel()
-        self._parameters_request = self._parameters_client.call_async(
-            GetParameters.Request(names=list(SIMULATOR_PARAMETERS)))
-        self._parameters_request.add_done_callback(self._take_simulator_parameters)
+        """Ask the simulator for its course and camera rate until it answers."""
+        if not self._parameters_request.asked:
+            self._parameters_request.ask(GetParameters.Request(names=list(SIMULATOR_PARAMETERS)))
+        if self._parameters_request.poll():
+            self._ask_timer.cancel()
+            self._take_simulator_parameters(self._parameters_request.response)
 
-    def _take_simulator_parameters(self, future) -> None:
-        response = future.result()
+    def _take_simulator_parameters(self, response) -> None:
         if response is None or len(response.values) != len(SIMULATOR_PARAMETERS):
             self._fail(f'The simulator {self._simulator} did not say which course it runs.')
             return

@@ -1,13 +1,11 @@
 """The run recorder over real DDS: it holds simulated time while it lags behind the clock."""
 
 from conftest import spin_until
-from followbot_sim.run_recording import (HOLD_LAG_S, PauseRequests, RESUME_LAG_S, run_topics,
-                                         RunRecording)
+from followbot_sim.run_recording import HOLD_LAG_S, RESUME_LAG_S, run_topics, RunRecording
 import pytest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from std_srvs.srv import SetBool
 
 SIM_TIME_S = 5.0
 NANOSECONDS = 1_000_000_000
@@ -57,36 +55,3 @@ def test_run_topics_hold_the_camera_chosen_and_the_robots_clock(compressed, came
     assert topics[-1] == ('/r1/clock', 'rosgraph_msgs/msg/Clock')
     assert {'cmd_vel', 'odom', 'ground_truth/odom', 'follower/status', '/diagnostics', '/tf',
             '/tf_static', 'camera/rgb/camera_info'} <= {topic for topic, _ in topics}
-
-
-def test_a_request_to_run_is_sent_until_the_simulator_answers(ros_context):
-    # A real pause service: the request is sent when the service is there, answered once.
-    received = []
-    server = Node('pause_server', context=ros_context)
-
-    def pause(request, response):
-        received.append(request.data)
-        response.success = True
-        return response
-
-    server.create_service(SetBool, '/followbot_sim/pause', pause)
-    client_node = Node('pause_client', context=ros_context)
-    requests = PauseRequests(client_node.create_client(SetBool, '/followbot_sim/pause'))
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(server)
-    executor.add_node(client_node)
-    try:
-        assert not requests.asked
-        requests.ask(False)
-        assert requests.asked
-        assert spin_until(executor, requests.poll)
-        assert received[-1] is False
-        answered = len(received)
-        for _ in range(5):
-            executor.spin_once(timeout_sec=0.05)
-            assert requests.poll()
-        assert len(received) == answered
-    finally:
-        executor.shutdown()
-        server.destroy_node()
-        client_node.destroy_node()

@@ -4,13 +4,15 @@ import math
 import subprocess
 import sys
 
-from conftest import child_environment, run_domain_id
+from conftest import child_environment, run_domain_id, spin_until
 import cv2
 from followbot_sim.course_file import load_course
 from followbot_sim.topdown import side_by_side, TopDownView
-from followbot_sim.video import check_video_path, FrameSchedule, VideoPathError
+from followbot_sim.video import check_video_path, FrameSchedule, VideoNode, VideoPathError
 import numpy as np
 import pytest
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
 
 CAMERA_WIDTH_PX = 640
 CAMERA_HEIGHT_PX = 480
@@ -168,3 +170,43 @@ def test_lockstep_run_writes_a_video_as_long_as_the_run(tmp_path, file_name, per
     assert not np.array_equal(frames[0][:, :CAMERA_WIDTH_PX], frames[-1][:, :CAMERA_WIDTH_PX])
     assert not np.array_equal(frames[0][:, CAMERA_WIDTH_PX:], frames[-1][:, CAMERA_WIDTH_PX:])
     assert f'Video {video}: {len(frames)} frames' in result.stdout
+
+
+class ParameterHolder:
+    """A node that holds the parameters a video asks a simulator for, over its real service."""
+
+    def __init__(self, context, course):
+        """Declare the course, lighting and camera rate a simulator holds, as /sim_stand_in."""
+        self.node = Node('sim_stand_in', context=context)
+        self.node.declare_parameter('course', course)
+        self.node.declare_parameter('lighting_zones', False)
+        self.node.declare_parameter('camera_rate_hz', 20.0)
+
+
+@pytest.mark.parametrize('course, failed', [('book_loop', False), ('no_such_course', True)])
+def test_video_says_what_it_waits_for_and_does_not_hold_a_run_it_cannot_film(
+        ros_context, tmp_path, course, failed):
+    video = VideoNode(tmp_path / 'run.mp4', '/sim_stand_in', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(video)
+    assert video.waiting_for() == ["/sim_stand_in's course",
+                                   'a publisher of /follower/debug_image',
+                                   'a publisher of /ground_truth/odom']
+    assert not video.ready
+    holder = ParameterHolder(ros_context, course)
+    executor.add_node(holder.node)
+    try:
+        assert spin_until(executor, lambda: "/sim_stand_in's course" not in video.waiting_for())
+        if failed:
+            # The run goes on without its video: nothing left to wait for.
+            assert video.ready
+            assert video.waiting_for() == []
+        else:
+            # Course known; the follower's view and the robot's pose have no publisher here.
+            assert video.waiting_for() == ['a publisher of /follower/debug_image',
+                                           'a publisher of /ground_truth/odom']
+            assert not video.ready
+    finally:
+        executor.shutdown()
+        holder.node.destroy_node()
+        video.destroy_node()
