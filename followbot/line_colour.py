@@ -16,7 +16,7 @@ the line's pixels are judged relative to the floor around them:
    - ``yellow``: yellowness ``min(red, green) - blue`` at least ``YELLOW_MIN_LEVELS`` above
      the floor's and at least ``YELLOW_MIN_SATURATION`` of the pixel's brightness (pale tape
      has saturation 40-100 of 255), and a hue within ``YELLOW_HUE_TOLERANCE`` of yellow
-     (orange-yellow to lime);
+     (orange-yellow to lime), balanced or as the camera gave it;
    - ``white``: brighter than the floor by ``WHITE_MIN_CONTRAST`` of the way to full
      brightness, and nearly colourless;
    - ``black``: darker than the floor by ``BLACK_MIN_CONTRAST`` of its brightness, and
@@ -181,7 +181,7 @@ def pixel_strength(model: FloorModel, pixels: np.ndarray, bands=None) -> np.ndar
         yellowness = np.minimum(red, green) - blue
         needed = np.maximum(typical + np.maximum(YELLOW_MIN_LEVELS, NOISE_SIGMAS * noise),
                             YELLOW_MIN_SATURATION * level)
-        strength = np.where(np.abs(red - green) <= YELLOW_HUE_TOLERANCE * yellowness,
+        strength = np.where(_yellow_hue(balanced) | _yellow_hue(pixels),
                             yellowness / needed, 0.0)
     else:
         if model.colour == 'white':
@@ -194,6 +194,19 @@ def pixel_strength(model: FloorModel, pixels: np.ndarray, bands=None) -> np.ndar
         colourless = chroma <= MAX_GREY_SATURATION * np.maximum(level, typical)
         strength = np.where(colourless, contrast / needed, 0.0)
     return strength.astype(np.float32)
+
+
+def _yellow_hue(pixels: np.ndarray) -> np.ndarray:
+    """
+    Tell which BGR pixels have a hue within YELLOW_HUE_TOLERANCE of yellow.
+
+    The tape's hue is accepted as balanced or as the camera gave it: a strongly coloured floor
+    (a magenta carpet) pulls the grey-world balance, within its bounds, so far that yellow tape
+    turns lime, while the camera's own colours still show it yellow. Its contrast with the
+    floor is judged on the balanced colours either way, so a cast floor stays floor.
+    """
+    blue, green, red = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+    return np.abs(red - green) <= YELLOW_HUE_TOLERANCE * (np.minimum(red, green) - blue)
 
 
 def _balanced(pixels: np.ndarray, gains: np.ndarray, grey: bool) -> np.ndarray:
