@@ -102,7 +102,13 @@ class CameraModel:
             rng = realism.generator('sensor_noise')
             self._noise_bank = rng.standard_normal(
                 NOISE_BANK_FRAMES * width_px * height_px * 3, dtype=np.float32)
+        # The noise's standard deviation at each 8-bit level: shot noise's variance grows
+        # with the signal, read noise's does not.
+        self._noise_sigma = np.sqrt(
+            realism.shot_noise_gain * np.arange(256.0) + realism.read_noise_levels ** 2
+        ).astype(np.float32).reshape(256, 1)
         self._frame = np.empty((height_px, width_px, 3), np.float32)
+        self._blurred = np.empty((height_px, width_px, 3), np.uint8)
         self._output = np.empty((height_px, width_px, 3), np.uint8)
         self.exposure_gain = 1.0
 
@@ -225,20 +231,21 @@ class CameraModel:
                 self._mean_gain)
             gain = (EXPOSURE_TARGET_LEVEL / max(metered, 1.0)) ** EXPOSURE_RESPONSE
             self.exposure_gain = gain = float(np.clip(gain, *EXPOSURE_GAIN_LIMITS))
-        frame = cv2.multiply(image, self._gain_map, scale=gain, dtype=cv2.CV_32F,
-                             dst=self._frame)
+        # Exposure, vignetting and white balance in one pass, rounded and saturated to 8 bits
+        # as the sensor's converter does; blur and noise work on those bytes.
+        output = cv2.multiply(image, self._gain_map, scale=gain, dtype=cv2.CV_8U,
+                              dst=self._output)
         fx_px, fy_px, _, _ = self.intrinsics
         blur_x = abs(yaw_rate_radps) * realism.exposure_time_s * fx_px
         blur_y = abs(forward_mps) * realism.exposure_time_s * fy_px * FORWARD_BLUR_SHARE
         if max(blur_x, blur_y) >= MIN_BLUR_PX:
             kernel = (max(1, int(round(blur_x))), max(1, int(round(blur_y))))
-            frame = cv2.blur(frame, kernel)
+            # Averaged in floats: OpenCV's 8-bit box filter rounds even kernels up (by 0.75
+            # of a level for a 2-pixel smear), which would brighten every moving frame.
+            cv2.boxFilter(output, cv2.CV_32F, kernel, dst=self._frame)
+            output = cv2.convertScaleAbs(self._frame, dst=self._blurred)
         if self._noise_bank is not None:
-            self._add_noise(frame, step_index)
-        # Rounds and saturates to 0-255.
-        output = self._output
-        np.maximum(frame, 0.0, out=frame)
-        cv2.convertScaleAbs(frame, dst=output)
+            output = self._add_noise(output, step_index)
         if realism.jpeg_quality > 0:
             ok, encoded = cv2.imencode('.jpg', cv2.cvtColor(output, cv2.COLOR_RGB2BGR),
                                        [cv2.IMWRITE_JPEG_QUALITY, int(realism.jpeg_quality)])
@@ -247,16 +254,18 @@ class CameraModel:
                              dst=output)
         return output
 
-    def _add_noise(self, frame: np.ndarray, step_index: int) -> None:
-        """Add shot noise (variance ~ signal) and read noise from the bank, seeded per step."""
+    def _add_noise(self, image: np.ndarray, step_index: int) -> np.ndarray:
+        """
+        Add shot noise (variance ~ signal) and read noise from the bank, seeded per step.
+
+        :param image: the 8-bit image; the noise's spread at each level comes from a table.
+        :return: the noisy image, rounded and saturated to 8 bits (in the output buffer).
+        """
         realism = self._realism
-        size = frame.size
+        size = image.size
         rng = np.random.Generator(np.random.PCG64([realism.seed, int(step_index), 7]))
         offset = int(rng.integers(0, len(self._noise_bank) - size, endpoint=True))
-        normal = self._noise_bank[offset:offset + size].reshape(frame.shape)
-        variance = cv2.max(frame, 0.0)
-        variance = cv2.addWeighted(variance, realism.shot_noise_gain, variance, 0.0,
-                                   realism.read_noise_levels ** 2)
-        cv2.sqrt(variance, dst=variance)
-        cv2.multiply(variance, normal, dst=variance)
-        cv2.add(frame, variance, dst=frame)
+        normal = self._noise_bank[offset:offset + size].reshape(image.shape)
+        noise = cv2.LUT(image, self._noise_sigma, dst=self._frame)
+        cv2.multiply(noise, normal, dst=noise)
+        return cv2.add(image, noise, dst=self._output, dtype=cv2.CV_8U)
