@@ -342,6 +342,9 @@ class SimulatorNode(Node):
             _Periodic(parameters['score_period_s'], self._publish_score),
         ]
         self._tick_s = tick_s
+        # As fast as possible in lockstep, time stops at each camera frame for its answer
+        # anyway: one timer call runs up to the next frame, not one executor pass per tick.
+        self._fast_step_s = (1.0 / camera_rate_hz if parameters['lockstep'] else tick_s)
 
         # Pacing runs on the wall clock: this node is the source of simulated time.
         self._wall_clock = Clock(clock_type=ClockType.STEADY_TIME)
@@ -634,7 +637,7 @@ class SimulatorNode(Node):
             self._hold_for_partner()
             return
         if self._real_time_factor == 0.0:
-            self._advance_to(self._world.time_s + self._tick_s)
+            self._advance_to(self._world.time_s + self._fast_step_s)
             return
         if self._pacing_origin is None:
             # Pace from the end of the first tick: it includes the renderer's start-up.
