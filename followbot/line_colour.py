@@ -181,7 +181,7 @@ def pixel_strength(model: FloorModel, pixels: np.ndarray, bands=None) -> np.ndar
         yellowness = np.minimum(red, green) - blue
         needed = np.maximum(typical + np.maximum(YELLOW_MIN_LEVELS, NOISE_SIGMAS * noise),
                             YELLOW_MIN_SATURATION * level)
-        strength = np.where(_yellow_hue(balanced) | _yellow_hue(pixels),
+        strength = np.where(_yellow_hue(balanced, yellowness) | _yellow_hue(pixels),
                             yellowness / needed, 0.0)
     else:
         if model.colour == 'white':
@@ -196,9 +196,11 @@ def pixel_strength(model: FloorModel, pixels: np.ndarray, bands=None) -> np.ndar
     return strength.astype(np.float32)
 
 
-def _yellow_hue(pixels: np.ndarray) -> np.ndarray:
+def _yellow_hue(pixels: np.ndarray, yellowness: np.ndarray | None = None) -> np.ndarray:
     """
     Tell which BGR pixels have a hue within YELLOW_HUE_TOLERANCE of yellow.
+
+    ``yellowness`` is the pixels' ``min(red, green) - blue`` when the caller has it already.
 
     The tape's hue is accepted as balanced or as the camera gave it: a strongly coloured floor
     (a magenta carpet) pulls the grey-world balance, within its bounds, so far that yellow tape
@@ -206,7 +208,9 @@ def _yellow_hue(pixels: np.ndarray) -> np.ndarray:
     floor is judged on the balanced colours either way, so a cast floor stays floor.
     """
     blue, green, red = pixels[..., 0], pixels[..., 1], pixels[..., 2]
-    return np.abs(red - green) <= YELLOW_HUE_TOLERANCE * (np.minimum(red, green) - blue)
+    if yellowness is None:
+        yellowness = np.minimum(red, green) - blue
+    return np.abs(red - green) <= YELLOW_HUE_TOLERANCE * yellowness
 
 
 def _balanced(pixels: np.ndarray, gains: np.ndarray, grey: bool) -> np.ndarray:
