@@ -31,8 +31,8 @@ from followbot_sim import soak
 from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
-from followbot_sim.run_recording import (add_record_options, PAUSE_SERVICE, RunRecording,
-                                         WAIT_REPORT_S)
+from followbot_sim.run_recording import (add_record_options, HoldReport, PAUSE_SERVICE,
+                                         RunRecording)
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.video import add_video_node, check_video_path, VideoPathError
@@ -532,7 +532,7 @@ def main(argv=None) -> int:
     children = (simulator, *followers)
     soak_samples = []
     started_s = next_sample_s = time.monotonic()
-    video_wait_reported = False
+    video_hold = HoldReport('the video')
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
@@ -541,10 +541,8 @@ def main(argv=None) -> int:
                 soak_samples.append(_soak_sample(
                     time.monotonic() - started_s, children, monitor.summaries))
             if video is not None and not video.ready:
-                if not video_wait_reported and time.monotonic() - started_s > WAIT_REPORT_S:
-                    video_wait_reported = True
-                    print(f'[followbot] Simulation held for {WAIT_REPORT_S:g} s: the video still '
-                          f'waits for {", ".join(video.waiting_for())}.', flush=True)
+                if report := video_hold.line(lambda: ', '.join(video.waiting_for())):
+                    print(f'[followbot] {report}', flush=True)
                 continue
             if recording is not None:
                 started = recording.started

@@ -64,6 +64,34 @@ def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list
     return [camera, *RUN_TOPICS, (clock_topic, CLOCK_TYPE)]
 
 
+class HoldReport:
+    """Say once, when a simulator started paused is still held after WAIT_REPORT_S, for what."""
+
+    def __init__(self, waiter: str):
+        """
+        Start the wait now.
+
+        :param waiter: who holds the simulator, as the report names it (``the video``).
+        """
+        self._waiter = waiter
+        self._created_s = time.monotonic()
+        self._reported = False
+
+    def line(self, missing) -> str | None:
+        """
+        Return the report once its time has come, then never again.
+
+        :param missing: a callable returning what is still missing, as a phrase; called only
+            when the report is made.
+        :return: the line to print, or None.
+        """
+        if self._reported or time.monotonic() - self._created_s < WAIT_REPORT_S:
+            return None
+        self._reported = True
+        return (f'Simulation held for {WAIT_REPORT_S:g} s: {self._waiter} still waits for '
+                f'{missing()}.')
+
+
 def add_record_options(parser, one_file_per_run: bool = False) -> None:
     """
     Add ``--record`` and ``--record-compressed`` to a command's argument parser.
@@ -117,8 +145,7 @@ class RunRecording:
         self.started = False
         self.holding = False
         self.holds = 0
-        self._created_s = time.monotonic()
-        self._wait_reported = False
+        self._hold_report = HoldReport('the recorder')
 
     def poll(self) -> bool:
         """
@@ -168,15 +195,14 @@ class RunRecording:
 
         :return: the line to print, or None.
         """
-        if self.started or self._wait_reported or (
-                time.monotonic() - self._created_s < WAIT_REPORT_S):
+        if self.started:
             return None
-        self._wait_reported = True
+        return self._hold_report.line(self._missing)
+
+    def _missing(self) -> str:
         waiting = self.recorder.waiting_topics
-        missing = (f'publishers of {", ".join(waiting)}' if waiting
-                   else 'a publisher to match its subscriptions (a type or QoS mismatch?)')
-        return (f'Simulation held for {WAIT_REPORT_S:g} s: the recorder still waits for '
-                f'{missing}.')
+        return (f'publishers of {", ".join(waiting)}' if waiting
+                else 'a publisher to match its subscriptions (a type or QoS mismatch?)')
 
     def drain(self, executor) -> None:
         """

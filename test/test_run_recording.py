@@ -1,6 +1,7 @@
 """The run recorder over real DDS: it holds simulated time while it lags behind the clock."""
 
 from conftest import spin_until
+from followbot_sim import run_recording
 from followbot_sim.run_recording import HOLD_LAG_S, RESUME_LAG_S, run_topics, RunRecording
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -55,3 +56,21 @@ def test_run_topics_hold_the_camera_chosen_and_the_robots_clock(compressed, came
     assert topics[-1] == ('/r1/clock', 'rosgraph_msgs/msg/Clock')
     assert {'cmd_vel', 'odom', 'ground_truth/odom', 'follower/status', '/diagnostics', '/tf',
             '/tf_static', 'camera/rgb/camera_info'} <= {topic for topic, _ in topics}
+
+
+def test_a_held_simulation_is_reported_once_when_its_time_has_come(monkeypatch):
+    asked = []
+
+    def missing():
+        asked.append(True)
+        return 'a publisher of /follower/debug_image'
+
+    report = run_recording.HoldReport('the video')
+    # Not yet: what is missing is not even looked at.
+    assert report.line(missing) is None
+    assert asked == []
+    monkeypatch.setattr(run_recording, 'WAIT_REPORT_S', 0.0)
+    assert report.line(missing) == ('Simulation held for 0 s: the video still waits for a '
+                                    'publisher of /follower/debug_image.')
+    assert report.line(missing) is None
+    assert len(asked) == 1
