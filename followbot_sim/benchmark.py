@@ -51,7 +51,7 @@ from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.realism import CLEAN, PRESET_NAMES, realise, Realism
 from followbot_sim.score import score_values
 from followbot_sim.score import SIMULATOR_NODE
-from followbot_sim.scorecard import LOCKSTEP_IMAGE_TIMEOUT_S
+from followbot_sim.scorecard import LOCKSTEP_IMAGE_TIMEOUT_S, markdown_table, number_cell
 from followbot_sim.world import FollowbotWorld
 import mujoco
 import numpy as np
@@ -96,17 +96,6 @@ def _percentiles(values) -> dict:
         return {'median': None, 'p99': None, 'max': None}
     return {'median': float(np.median(values)), 'p99': float(np.percentile(values, 99)),
             'max': float(values.max())}
-
-
-def _number(value, digits: int = 1) -> str:
-    return '—' if value is None else f'{value:.{digits}f}'
-
-
-def _markdown_table(header: list, rows: list) -> str:
-    lines = ['| ' + ' | '.join(header) + ' |',
-             '| ' + ' | '.join('---' for _ in header) + ' |']
-    lines += ['| ' + ' | '.join(str(cell) for cell in row) + ' |' for row in rows]
-    return '\n'.join(lines)
 
 
 def render_course_frames(frame_count: int, course_name: str = COURSE,
@@ -298,11 +287,11 @@ def format_perception(results: dict) -> str:
         **{f'follower_{encoding}': f'the follower: {encoding} Image (convert + detect)'
            for encoding in CAMERA_ENCODINGS},
     }
-    rows = [(label, _number(results[key]['median_us']), _number(results[key]['p99_us']),
+    rows = [(label, number_cell(results[key]['median_us']), number_cell(results[key]['p99_us']),
              f"{book_us / results[key]['median_us']:.1f}×")
             for key, label in names.items() if key in results]
-    return _markdown_table(['pipeline, Image message to line position', 'median µs',
-                            'p99 µs', 'book ÷ this (median)'], rows)
+    return markdown_table(['pipeline, Image message to line position', 'median µs',
+                           'p99 µs', 'book ÷ this (median)'], rows)
 
 
 def measure_real_frames(pictures_dir: Path | None = None) -> dict:
@@ -350,8 +339,8 @@ def format_real_frames(results: dict) -> str:
         rows.append((row['source'], row['colour'], tally.frames, tally.bands,
                      f'{100 * tally.right_share:.1f}', f'{100 * tally.false_share:.1f}',
                      f'{100 * tally.share(tally.missed):.1f}', tally.confident_false_frames))
-    return _markdown_table(['source', 'line colour (preset)', 'frames', 'bands', 'right %',
-                            'false %', 'missed %', 'frames confidently false'], rows)
+    return markdown_table(['source', 'line colour (preset)', 'frames', 'bands', 'right %',
+                           'false %', 'missed %', 'frames confidently false'], rows)
 
 
 class ChildProcess:
@@ -509,13 +498,13 @@ def format_latency(results: list) -> str:
             rows.append((f"{result['rate_hz']:g} Hz", profile, 'failed', '', '', '', '', ''))
             continue
         rows.append((
-            f"{result['rate_hz']:g} Hz", profile, _number(result['p50_ms'], 2),
-            _number(result['p99_ms'], 2), _number(result['max_ms'], 2),
+            f"{result['rate_hz']:g} Hz", profile, number_cell(result['p50_ms'], 2),
+            number_cell(result['p99_ms'], 2), number_cell(result['max_ms'], 2),
             f"{result['dropped']} of {result['frames']}",
-            _number(result['peak_memory_follower_mib'], 0),
-            _number(result['peak_memory_probe_mib'], 0)))
-    return _markdown_table(['rate', 'DDS configuration', 'p50 ms', 'p99 ms', 'max ms',
-                            'frames dropped', 'follower peak MiB', 'camera peak MiB'], rows)
+            number_cell(result['peak_memory_follower_mib'], 0),
+            number_cell(result['peak_memory_probe_mib'], 0)))
+    return markdown_table(['rate', 'DDS configuration', 'p50 ms', 'p99 ms', 'max ms',
+                           'frames dropped', 'follower peak MiB', 'camera peak MiB'], rows)
 
 
 class _ScoreListener(Node):
@@ -628,10 +617,10 @@ def format_simulation(results: list) -> str:
         rows.append((result['realism'], f"{result['measured_simulated_s']:.0f}",
                      f"{result['wall_s']:.1f}", f"{result['simulated_per_wall']:.2f}×",
                      result['laps'], f"{result['rms_cm']:.1f} / {result['max_cm']:.1f}",
-                     _number(result['peak_memory_simulator_mib'], 0),
-                     _number(result['peak_memory_follower_mib'], 0)))
-    return _markdown_table(['realism (seed 1)', 'simulated s', 'wall s', 'real time ×', 'laps',
-                            'RMS / max cm', 'simulator peak MiB', 'follower peak MiB'], rows)
+                     number_cell(result['peak_memory_simulator_mib'], 0),
+                     number_cell(result['peak_memory_follower_mib'], 0)))
+    return markdown_table(['realism (seed 1)', 'simulated s', 'wall s', 'real time ×', 'laps',
+                           'RMS / max cm', 'simulator peak MiB', 'follower peak MiB'], rows)
 
 
 def machine_description() -> str:

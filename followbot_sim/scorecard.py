@@ -450,20 +450,17 @@ def format_realistic_table(runs: list) -> str:
         perception = run['perception']
         preset, _, seed = run['scenario'].partition('@')[2].partition('#')
         rows.append([preset, run['course'], seed, run['configuration'], run['end_reason'],
-                     _number(metrics.get('lap_time_s'), 1),
-                     _number(metrics.get('rms_distance_from_line_m'), 1, CM_PER_M),
-                     _number(metrics.get('max_distance_from_line_m'), 1, CM_PER_M),
-                     _number(metrics.get('line_lost_percent'), 2),
-                     _number(perception['right_percent'], 1),
-                     _number(perception['false_percent'], 1),
-                     _number(perception['missed_percent'], 1),
-                     _number(run.get('simulated_per_wall'), 2)])
+                     number_cell(metrics.get('lap_time_s'), 1),
+                     number_cell(metrics.get('rms_distance_from_line_m'), 1, CM_PER_M),
+                     number_cell(metrics.get('max_distance_from_line_m'), 1, CM_PER_M),
+                     number_cell(metrics.get('line_lost_percent'), 2),
+                     number_cell(perception['right_percent'], 1),
+                     number_cell(perception['false_percent'], 1),
+                     number_cell(perception['missed_percent'], 1),
+                     number_cell(run.get('simulated_per_wall'), 2)])
     if not rows:
         return ''
-    lines = ['| ' + ' | '.join(REALISTIC_TABLE_COLUMNS) + ' |',
-             '|' + '|'.join('---' for _ in REALISTIC_TABLE_COLUMNS) + '|']
-    lines += ['| ' + ' | '.join(row) + ' |' for row in rows]
-    return '\n'.join(lines)
+    return markdown_table(REALISTIC_TABLE_COLUMNS, rows)
 
 
 def speedups(runs: list) -> dict:
@@ -490,8 +487,23 @@ def _count(number: int, noun: str) -> str:
     return f'{number} {noun}' + ('' if number == 1 else 's')
 
 
-def _number(value, digits: int, scale: float = 1.0) -> str:
+def number_cell(value, digits: int = 1, scale: float = 1.0) -> str:
+    """Return a table cell of a number times ``scale`` to ``digits`` decimals; None as MISSING."""
     return MISSING if value is None else f'{value * scale:.{digits}f}'
+
+
+def markdown_table(header, rows) -> str:
+    """
+    Return a plain Markdown table.
+
+    :param header: the column titles.
+    :param rows: the rows, each a sequence of cells (turned into text with ``str``).
+    :return: the table's lines, joined.
+    """
+    lines = ['| ' + ' | '.join(header) + ' |',
+             '| ' + ' | '.join('---' for _ in header) + ' |']
+    lines += ['| ' + ' | '.join(str(cell) for cell in row) + ' |' for row in rows]
+    return '\n'.join(lines)
 
 
 def _lost_frames_cell(metrics: dict) -> str:
@@ -509,18 +521,18 @@ def _table_row(run: dict, ratio) -> list:
         if len(end) > MAX_TABLE_ERROR_CHARS:
             end = end[:MAX_TABLE_ERROR_CHARS - 1] + '…'
         # A '|' in an error message would split the Markdown cell.
-        return cells + blanks + [end.replace('|', '/'), _number(run.get('wall_s'), 0), MISSING]
+        return cells + blanks + [end.replace('|', '/'), number_cell(run.get('wall_s'), 0), MISSING]
     return cells + [
-        _number(metrics['completion_percent'], 0),
-        _number(metrics['lap_time_s'], 1),
-        _number(metrics['mean_speed_mps'], 3),
-        _number(metrics['rms_distance_from_line_m'], 1, CM_PER_M),
-        _number(metrics['max_distance_from_line_m'], 1, CM_PER_M),
-        _number(metrics['time_off_line_s'], 1),
+        number_cell(metrics['completion_percent'], 0),
+        number_cell(metrics['lap_time_s'], 1),
+        number_cell(metrics['mean_speed_mps'], 3),
+        number_cell(metrics['rms_distance_from_line_m'], 1, CM_PER_M),
+        number_cell(metrics['max_distance_from_line_m'], 1, CM_PER_M),
+        number_cell(metrics['time_off_line_s'], 1),
         _lost_frames_cell(metrics),
         str(metrics['recoveries']),
         run['end_reason'],
-        _number(run['wall_s'], 0),
+        number_cell(run['wall_s'], 0),
         MISSING if ratio is None else f'{ratio:.2f}×',
     ]
 
@@ -567,7 +579,7 @@ def format_progress(run: dict, done: int, total: int) -> str:
     lap = MISSING if metrics['lap_time_s'] is None else f"{metrics['lap_time_s']:.1f} s"
     return (head + f"{run['end_reason']}, done {metrics['completion_percent']:.0f}%, lap {lap}, "
             f"RMS {CM_PER_M * metrics['rms_distance_from_line_m']:.1f} cm; "
-            f"{run['wall_s']:.0f} s wall, {_number(run['simulated_per_wall'], 1)}x real time")
+            f"{run['wall_s']:.0f} s wall, {number_cell(run['simulated_per_wall'], 1)}x real time")
 
 
 # Set in each worker process by _init_worker.
