@@ -15,8 +15,9 @@ import math
 
 from followbot.ground_projection import CameraGeometry, CameraIntrinsics
 from followbot.image_conversion import image_to_array
-from followbot.line_detector import DetectorConfig, LineDetector, MIN_WIDTH_RATIO
-from followbot_sim.perception_score import band_truth, EDGE_MARGIN_PX, PerceptionTally
+from followbot.line_detector import DetectorConfig, LineDetector
+from followbot_sim.perception_score import (band_truth, EDGE_MARGIN_PX, PerceptionTally,
+                                            thinnest_line_px)
 from geometry_msgs.msg import PolygonStamped
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
@@ -53,11 +54,9 @@ def detection_line_truths(pieces, detection, geometry, line_width_m: float) -> l
     :return: ``[bands]``: one list of BandTruth, nearest band first (one line).
     """
     truths = []
-    for band in detection.bands:
-        centre_px = (band.top_px + band.bottom_px - 1) / 2.0
-        min_width_px = 0.0 if geometry is None else float(
-            MIN_WIDTH_RATIO * geometry.line_width_px(centre_px, line_width_m))
-        reach_px = EDGE_MARGIN_PX + 1.0
+    reach_px = EDGE_MARGIN_PX + 1.0
+    for band, min_width_px in zip(detection.bands,
+                                  thinnest_line_px(detection, geometry, line_width_m)):
         near = [piece for piece in pieces
                 if band.top_px - reach_px <= piece[0][1] <= band.bottom_px + reach_px]
         truths.append(band_truth(near, band.top_px, band.bottom_px, (), min_width_px))

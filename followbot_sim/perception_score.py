@@ -27,6 +27,8 @@ import dataclasses
 import math
 from typing import NamedTuple
 
+from followbot.line_detector import MIN_WIDTH_RATIO
+
 PRESENT = 'present'
 ABSENT = 'absent'
 EITHER = 'either'
@@ -121,6 +123,26 @@ def band_truth(polylines, top_px: int, bottom_px: int, ignored_rows=(),
            for polyline in polylines):
         return BandTruth(EITHER, tuple(intervals))
     return BandTruth(ABSENT, ())
+
+
+def thinnest_line_px(detection, geometry, line_width_m: float) -> list:
+    """
+    Return, per band of a detection, the narrowest marking that counts as the line (pixels).
+
+    Markings much thinner than the tape the detector is set up for are not the line it
+    follows: the bound is the detector's own narrowest stripe, ``MIN_WIDTH_RATIO`` of the
+    tape's width in the band.
+
+    :param detection: the line_detector.Detection whose bands are judged.
+    :param geometry: the CameraGeometry, or None (then every marking counts: 0).
+    :param line_width_m: the width of the tape the detector is set up for.
+    :return: one width per band, nearest band first.
+    """
+    centres_px = [(band.top_px + band.bottom_px - 1) / 2.0 for band in detection.bands]
+    if geometry is None:
+        return [0.0] * len(centres_px)
+    return [float(MIN_WIDTH_RATIO * width_px)
+            for width_px in geometry.line_width_px(centres_px, line_width_m)]
 
 
 def band_verdict(truth: BandTruth, found: bool, x_px: float) -> str:

@@ -20,8 +20,9 @@ from pathlib import Path
 
 import cv2
 from followbot.ground_projection import CameraGeometry
-from followbot.line_detector import DetectorConfig, LineDetector, MIN_WIDTH_RATIO
-from followbot_sim.perception_score import band_truth, group_lines, PerceptionTally
+from followbot.line_detector import DetectorConfig, LineDetector
+from followbot_sim.perception_score import (band_truth, group_lines, PerceptionTally,
+                                            thinnest_line_px)
 import numpy as np
 import yaml
 
@@ -159,14 +160,8 @@ def frame_line_truths(frame, colour: str, detection, geometry, line_width_m: flo
     :param line_width_m: the width of the tape the detector is set up for.
     :return: per line, one BandTruth per band (see perception_score.frame_verdicts).
     """
-    centres_px = [(band.top_px + band.bottom_px - 1) / 2.0 for band in detection.bands]
-    if geometry is None:
-        thinnest_px = [0.0] * len(centres_px)
-    else:
-        # Markings much thinner than the tape are not the line the follower is set up for.
-        thinnest_px = MIN_WIDTH_RATIO * geometry.line_width_px(centres_px, line_width_m)
-    return [[band_truth(line, band.top_px, band.bottom_px, frame.ignore_rows,
-                        float(min_width_px))
+    thinnest_px = thinnest_line_px(detection, geometry, line_width_m)
+    return [[band_truth(line, band.top_px, band.bottom_px, frame.ignore_rows, min_width_px)
              for band, min_width_px in zip(detection.bands, thinnest_px)]
             for line in group_lines(frame.polylines(colour))]
 
