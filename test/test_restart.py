@@ -15,6 +15,7 @@ import subprocess
 from conftest import child_environment, kill_leftovers, node_command, spin_until, stop_process
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+import pytest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -87,73 +88,77 @@ def kill_outright(process: subprocess.Popen) -> None:
     process.wait()
 
 
-def watcher_node(context):
-    """Return (node, executor, watcher) for an independent client."""
-    node = Node('restart_watcher', context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    return node, executor, RobotWatcher(node)
+class Run:
+    """The simulator and the follower as processes, and a watcher node spun by its executor."""
+
+    def __init__(self, context):
+        """Start both processes and the watcher; :meth:`close` ends whatever still runs."""
+        self.environment = child_environment()
+        self.simulator = start_simulator(self.environment)
+        self.follower = start_follower(self.environment)
+        self.node = Node('restart_watcher', context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.watcher = RobotWatcher(self.node)
+
+    def close(self) -> None:
+        """Kill the processes still running and destroy the watcher."""
+        kill_leftovers(self.follower, self.simulator)
+        self.executor.shutdown()
+        self.node.destroy_node()
 
 
-def test_a_killed_follower_stops_the_robot_and_a_new_one_drives_it_again(ros_context):
-    environment = child_environment()
-    simulator = start_simulator(environment)
-    follower = start_follower(environment)
-    node, executor, watcher = watcher_node(ros_context)
-    try:
-        assert spin_until(executor, lambda: watcher.driving() and math.dist(
-            watcher.position(), watcher.first_position) > FAR_FROM_START_M,
-            DISCOVERY_TIMEOUT_S), f'speed {watcher.speed_mps()}, {len(watcher.commands)} commands'
-        kill_outright(follower)
-        # No zero Twist came from the dead follower: the simulator's watchdog stops the wheels.
-        assert watcher.commands[-1].linear.x > 0.0
-        assert spin_until(executor, lambda: watcher.speed_mps() < STOPPED_MPS,
-                          WHEELS_STOP_WITHIN_S), f'speed {watcher.speed_mps()}'
-        stopped_at = watcher.position()
-        restart_index = len(watcher.ground_truth)
-        follower = start_follower(environment)
-        commands_before = len(watcher.commands)
-        assert spin_until(executor, lambda: watcher.driving() and len(watcher.commands)
-                          >= commands_before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S), (
-            f'speed {watcher.speed_mps()}, {len(watcher.commands) - commands_before} commands')
-        assert simulator.poll() is None
-        # The simulator kept its world: the robot drove on from where it had stopped.
-        restarted_at = watcher.ground_truth[restart_index].pose.pose.position
-        assert math.dist(stopped_at, (restarted_at.x, restarted_at.y)) < STILL_M
-        assert stop_process(follower) == 0
-        assert stop_process(simulator) == 0
-    finally:
-        kill_leftovers(follower, simulator)
-        executor.shutdown()
-        node.destroy_node()
+@pytest.fixture
+def run(ros_context):
+    """Yield a Run on this test run's domain."""
+    started = Run(ros_context)
+    yield started
+    started.close()
 
 
-def test_a_killed_simulator_stops_the_follower_and_a_new_one_brings_it_back(ros_context):
-    environment = child_environment()
-    simulator = start_simulator(environment)
-    follower = start_follower(environment)
-    node, executor, watcher = watcher_node(ros_context)
-    try:
-        assert spin_until(executor, watcher.driving, DISCOVERY_TIMEOUT_S), (
-            f'speed {watcher.speed_mps()}, {len(watcher.commands)} commands')
-        kill_outright(simulator)
-        # The dead simulator's last ground truth must not pass for the new one's.
-        watcher.ground_truth.clear()
-        commands_before = len(watcher.commands)
-        # Neither images nor /clock come now: the follower's wall-time watchdog says stop.
-        assert spin_until(executor, lambda: len(watcher.commands) > commands_before
-                          and watcher.commands[-1] == Twist(), STOP_WITHIN_S), (
-            watcher.commands[commands_before:])
-        simulator = start_simulator(environment)
-        commands_before = len(watcher.commands)
-        # A new world from its start, its clock from zero: the follower drives it all the same.
-        assert spin_until(executor, lambda: watcher.driving() and len(watcher.commands)
-                          >= commands_before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S), (
-            f'speed {watcher.speed_mps()}, {len(watcher.commands) - commands_before} commands')
-        assert follower.poll() is None
-        assert stop_process(follower) == 0
-        assert stop_process(simulator) == 0
-    finally:
-        kill_leftovers(follower, simulator)
-        executor.shutdown()
-        node.destroy_node()
+def test_a_killed_follower_stops_the_robot_and_a_new_one_drives_it_again(run):
+    executor, watcher = run.executor, run.watcher
+    assert spin_until(executor, lambda: watcher.driving() and math.dist(
+        watcher.position(), watcher.first_position) > FAR_FROM_START_M,
+        DISCOVERY_TIMEOUT_S), f'speed {watcher.speed_mps()}, {len(watcher.commands)} commands'
+    kill_outright(run.follower)
+    # No zero Twist came from the dead follower: the simulator's watchdog stops the wheels.
+    assert watcher.commands[-1].linear.x > 0.0
+    assert spin_until(executor, lambda: watcher.speed_mps() < STOPPED_MPS,
+                      WHEELS_STOP_WITHIN_S), f'speed {watcher.speed_mps()}'
+    stopped_at = watcher.position()
+    restart_index = len(watcher.ground_truth)
+    run.follower = start_follower(run.environment)
+    commands_before = len(watcher.commands)
+    assert spin_until(executor, lambda: watcher.driving() and len(watcher.commands)
+                      >= commands_before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S), (
+        f'speed {watcher.speed_mps()}, {len(watcher.commands) - commands_before} commands')
+    assert run.simulator.poll() is None
+    # The simulator kept its world: the robot drove on from where it had stopped.
+    restarted_at = watcher.ground_truth[restart_index].pose.pose.position
+    assert math.dist(stopped_at, (restarted_at.x, restarted_at.y)) < STILL_M
+    assert stop_process(run.follower) == 0
+    assert stop_process(run.simulator) == 0
+
+
+def test_a_killed_simulator_stops_the_follower_and_a_new_one_brings_it_back(run):
+    executor, watcher = run.executor, run.watcher
+    assert spin_until(executor, watcher.driving, DISCOVERY_TIMEOUT_S), (
+        f'speed {watcher.speed_mps()}, {len(watcher.commands)} commands')
+    kill_outright(run.simulator)
+    # The dead simulator's last ground truth must not pass for the new one's.
+    watcher.ground_truth.clear()
+    commands_before = len(watcher.commands)
+    # Neither images nor /clock come now: the follower's wall-time watchdog says stop.
+    assert spin_until(executor, lambda: len(watcher.commands) > commands_before
+                      and watcher.commands[-1] == Twist(), STOP_WITHIN_S), (
+        watcher.commands[commands_before:])
+    run.simulator = start_simulator(run.environment)
+    commands_before = len(watcher.commands)
+    # A new world from its start, its clock from zero: the follower drives it all the same.
+    assert spin_until(executor, lambda: watcher.driving() and len(watcher.commands)
+                      >= commands_before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S), (
+        f'speed {watcher.speed_mps()}, {len(watcher.commands) - commands_before} commands')
+    assert run.follower.poll() is None
+    assert stop_process(run.follower) == 0
+    assert stop_process(run.simulator) == 0
