@@ -556,6 +556,10 @@ def main(argv=None) -> int:
                     start_gate.ask(SetBool.Request(data=False))
                 start_gate.poll()
     finally:
+        if recording is not None and simulator.process.poll() is not None:
+            # The run ended on its own: the recorder takes what the followers sent last (the
+            # answer to the last frame) while they still run, before their buffers go.
+            recording.drain(executor)
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
         exit_codes = {child.name: child.stop() for child in (*followers, simulator)}
