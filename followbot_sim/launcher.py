@@ -487,6 +487,10 @@ def main(argv=None) -> int:
         'lighting_zones': _ros_boolean(options.lighting),
         'real_time_factor': float(options.real_time_factor),
         'lockstep': _ros_boolean(options.lockstep),
+        # A loaded machine can keep a follower from answering a frame for a second (its first
+        # frame, above all): in lockstep the simulator waits as long as the follower's own
+        # watchdog does, instead of driving on unanswered.
+        'lockstep_timeout_s': float(LOCKSTEP_IMAGE_TIMEOUT_S) if options.lockstep else None,
         'run_duration_s': float(options.duration),
         'score_period_s': 1.0,
         # The single robot is left to the simulator's own default (or a --params-file).
