@@ -5,16 +5,17 @@ The topics are the ones a user looks at again: the camera (raw, or JPEG as image
 compressed plugin sends it), its camera_info, the follower's commands and status, odometry,
 ground truth, the score, ``/tf``, ``/tf_static`` and ``/clock``. Log times are simulated time,
 so a recording's timeline is the run's, however fast the machine ran it. The simulator starts
-paused and is let go only when the recorder hears every publisher: no first frame is missed. It
-is held again whenever the recorder falls a simulated second behind (a loaded machine leaves
-it unscheduled), so its queues never overflow; held time is wall time only, simulated time
-stands still.
+paused and is let go only when the recorder has heard every publisher for a moment (so that
+the publishers have heard its subscriptions too): no first frame is missed. It is held again
+whenever the recorder falls a simulated second behind (a loaded machine leaves it unscheduled),
+so its queues never overflow; held time is wall time only, simulated time stands still.
 """
 
 import time
 
 from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.recorder import Recorder
+from followbot_sim.steady_condition import SteadyCondition
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool
 
@@ -142,6 +143,8 @@ class RunRecording:
         self._pause_client = None if simulator_name is None else self.recorder.create_client(
             SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
         self._pause_requests = AnsweredRequests(self._pause_client)
+        # The recorder subscribes once it sees a publisher, so its side matches first.
+        self._connected = SteadyCondition()
         self.started = False
         self.holding = False
         self.holds = 0
@@ -149,7 +152,8 @@ class RunRecording:
 
     def poll(self) -> bool:
         """
-        Start the simulator once the recorder hears every topic, hold it while the recorder lags.
+        Start the simulator once the recorder has heard every topic for a moment; hold it while
+        the recorder lags.
 
         Call it after each spin.
 
@@ -157,8 +161,8 @@ class RunRecording:
         """
         self._pause_requests.poll()
         if not self.started:
-            if self.recorder.matched and (
-                    self._pause_client is None or self._pause_client.service_is_ready()):
+            if self._connected.update(self.recorder.matched and (
+                    self._pause_client is None or self._pause_client.service_is_ready())):
                 self._set_paused(False)
                 self.started = True
             return self.started

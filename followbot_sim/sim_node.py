@@ -34,6 +34,7 @@ from followbot_sim.realism import CLEAN, PRESET_NAMES, realise
 from followbot_sim.robots import (DEFAULT_ROBOT_SPACING_M, MAX_ROBOTS, MIN_ROBOT_SPACING_M,
                                   robot_names, robot_prefix)
 from followbot_sim.score import robot_simulator_name, score_status_name, SIMULATOR_NODE
+from followbot_sim.steady_condition import MATCH_SETTLE_S, SteadyCondition
 from followbot_sim.trail import Trail
 from followbot_sim.world import (DEFAULT_CAMERA_PITCH_DEG, DEFAULT_HORIZONTAL_FOV_DEG,
                                  FollowbotWorld, LEFT_WHEEL_JOINT, RenderingUnavailableError,
@@ -100,6 +101,10 @@ SIMULATOR_PARAMETERS = {
     'lockstep_timeout_s': ParameterSpec(
         1.0, 'Lockstep: longest wait (wall time) for the command answering a camera frame; '
         'after it the robot drives on with its last command.', 0.01, 60.0, read_only=True),
+    'lockstep_settle_s': ParameterSpec(
+        MATCH_SETTLE_S, 'Lockstep: how long (wall time) a follower must have been connected '
+        'before time runs, so that its cmd_vel publisher has matched this node too and the '
+        'answer to the first frame is not lost.', 0.0, 10.0, read_only=True),
     'start_paused': ParameterSpec(
         False, 'Start paused: time advances only through the step service until unpaused.',
         read_only=True),
@@ -318,6 +323,7 @@ class SimulatorNode(Node):
         self._paused = parameters['start_paused']
         self._lockstep = parameters['lockstep']
         self._lockstep_timeouts = 0
+        self._partner_connected = SteadyCondition(parameters['lockstep_settle_s'])
         self._holding_for_partner = False
         # Render once now: a machine that cannot render says so at start-up, and the GL
         # context is made on this thread, the one that spins the node.
@@ -633,7 +639,7 @@ class SimulatorNode(Node):
         """Advance the simulation as far as the real-time factor asks for."""
         if self._finished or self._paused or self._awaiting_command:
             return
-        if self._lockstep and not self._partner_present():
+        if self._lockstep and not self._partner_settled():
             self._hold_for_partner()
             return
         if self._real_time_factor == 0.0:
@@ -659,6 +665,10 @@ class SimulatorNode(Node):
         """Tell whether every robot has its follower: a camera subscriber and a commander."""
         return all(self._robot_partner_present(robot) for robot in self._robots)
 
+    def _partner_settled(self) -> bool:
+        """Tell whether every follower has been there for lockstep_settle_s, heard both ways."""
+        return self._partner_connected.update(self._partner_present())
+
     def _robot_partner_present(self, robot: _Robot) -> bool:
         return (robot.image_publisher is not None
                 and (robot.image_publisher.get_subscription_count() > 0
@@ -674,13 +684,16 @@ class SimulatorNode(Node):
                 f'{robot.image_publisher.topic_name if robot.image_publisher else "the camera"}'
                 f' and one publishes {robot.cmd_vel_subscription.topic_name}'
                 for robot in self._robots if not self._robot_partner_present(robot))
+            if not waiting_for:
+                # Connected, settling for lockstep_settle_s: too short to be worth a line.
+                return
             self.get_logger().info(
                 f'Lockstep: holding time at {self._world.time_s:.3f} s until a node subscribes '
                 f'to {waiting_for}.')
 
     def partner_check_callback(self) -> None:
-        """Lockstep: let time run again once the follower is there."""
-        if self._partner_present():
+        """Lockstep: let time run again once the follower has been there long enough."""
+        if self._partner_settled():
             self._partner_check_timer.cancel()
             self._holding_for_partner = False
             self.get_logger().info('Lockstep: follower connected, time runs.')
