@@ -868,14 +868,29 @@ class LineDetector:
         rivals = [[candidate for candidate in band if id(candidate) not in chosen and not (
             candidate.band in by_band and support.joined(by_band[candidate.band], candidate))]
             for band in candidates]
-        rival_score, _ = _best_chain(rivals, plan, self._previous_heading, support)
-        evidence = 0.0
+        rival_score, rival = _best_chain(rivals, plan, self._previous_heading, support)
+        continuation = []
+        if rival and _continues(chain, rival, self._previous_heading, plan.jump):
+            # Stripes beyond the chain's far end, ahead along it, that it did not take for
+            # want of paint between them (the gaps of a dashed line): the line's continuation,
+            # not another line. The best chain of the other stripes is the rival.
+            continuation = rival
+            taken = {id(candidate) for candidate in continuation}
+            rival_score, _ = _best_chain(
+                [[candidate for candidate in band if id(candidate) not in taken]
+                 for band in rivals], plan, self._previous_heading, support)
+        evidence = _gap_evidence(chain, candidates, plan, support)
         for position, candidate in enumerate(chain):
             before = chain[position - 1] if position > 0 else None
             after = chain[position + 1] if position + 1 < len(chain) else None
             stand_ins = sum(other.quality for other in rivals[candidate.band]
                             if _could_replace(other, before, after, plan.jump))
             evidence += candidate.quality * candidate.quality / (candidate.quality + stand_ins)
+        if continuation:
+            # It shows the line's way as far as paint across the gap to it does.
+            share = _paint_share(support(chain[-1], continuation[0]))
+            evidence += share * (sum(candidate.quality for candidate in continuation)
+                                 + _gap_evidence([chain[-1], *continuation], candidates, plan, support))
         coverage = evidence / max(sum(plan.searched), 1)
         rivalry = min(rival_score / best_score, 1.0) if best_score > 0.0 else 0.0
         confidence = min(1.0, coverage) * (1.0 - RIVAL_WEIGHT * rivalry * rivalry)
@@ -1171,6 +1186,40 @@ def _link_cost(near, far, direction, max_turn_rad, jump):
     return TURN_COST * (sideways / tolerance) ** 2
 
 
+def _paint_share(link_support):
+    """Return how surely a link's paint shows the line's way, 0 to 1."""
+    return min(1.0, link_support / FULL_LINK_SUPPORT)
+
+
+def _gap_evidence(chain, candidates, plan, support):
+    """
+    Return what the searched bands in the gaps a chain crosses add to its evidence.
+
+    A band between two chained stripes that holds no stripe at all (a dash gap) counts as
+    far as paint along their link shows the line's way there; not where the line left the
+    view between them (nothing of it was seen there).
+    """
+    evidence = 0.0
+    for near, far in zip(chain, chain[1:]):
+        skipped = sum(plan.searched[band] and not candidates[band]
+                      for band in range(near.band + 1, far.band))
+        if skipped and support.in_view(near, far):
+            evidence += skipped * min(near.quality, far.quality) * _paint_share(
+                support(near, far))
+    return evidence
+
+
+def _continues(chain, other, prior_heading, jump):
+    """Tell whether a chain lies wholly beyond another's far end and leads on from it."""
+    last = chain[-1]
+    if other[0].band <= last.band:
+        return False
+    direction = (_heading(chain[-2].point, last.point) if len(chain) > 1 else None) or (
+        prior_heading or (1.0, 0.0))
+    return _link_cost(last.point, other[0].point, direction, MAX_LINK_TURN_RAD,
+                      jump) is not None
+
+
 def _could_replace(other, before, after, jump):
     """Tell whether a stripe links to a chain member's neighbours as well as a line would."""
     for near, far in ((before, other), (other, after)):
@@ -1204,6 +1253,7 @@ class _LinkSupport:
         self._count = len(detector._bands)
         self._plan = plan
         self._cache = {}
+        self._left_view = set()
 
     def __call__(self, near, far) -> float:
         """Return the support of the link from a nearer candidate to a farther one."""
@@ -1224,8 +1274,17 @@ class _LinkSupport:
             if max(abs(near.x_px - edge_px), abs(far.x_px - edge_px)) < rows:
                 detour = [(near.x_px, near.y_px), (edge_px, 0.5 * (near.y_px + far.y_px)),
                           (far.x_px, far.y_px)]
-                return max(straight, self._path_support(detour, near, far))
+                along_edge = self._path_support(detour, near, far)
+                if along_edge > straight:
+                    self._left_view.add((id(near), id(far)))
+                    return along_edge
+                return straight
         return straight
+
+    def in_view(self, near, far) -> bool:
+        """Tell whether the link's support comes from a path inside the view, not its edge."""
+        self(near, far)
+        return (id(near), id(far)) not in self._left_view
 
     def joined(self, chosen, other) -> bool:
         """
@@ -1371,8 +1430,8 @@ def _best_chain(candidates, plan, prior_heading, support=None):
                     continue
                 if support is not None:
                     if link_cost is None:
-                        link_cost = UNSUPPORTED_LINK_COST * max(
-                            0.0, 1.0 - support(before, candidate) / FULL_LINK_SUPPORT)
+                        link_cost = UNSUPPORTED_LINK_COST * (
+                            1.0 - _paint_share(support(before, candidate)))
                     cost += link_cost
                 if best is None or score - cost > best[0]:
                     best = (score - cost, (earlier, previous))

@@ -61,7 +61,7 @@ def distance_to_polyline(x_m, y_m, polyline):
 
 
 def line_mask(polylines, width_m=LINE_WIDTH_M, geometry=KINECT, size=(WIDTH_PX, HEIGHT_PX),
-              dash=None):
+              dash=None, dash_start_m=0.0):
     """
     Return a boolean image of where the line's paint is.
 
@@ -70,6 +70,7 @@ def line_mask(polylines, width_m=LINE_WIDTH_M, geometry=KINECT, size=(WIDTH_PX, 
     :param geometry: the camera.
     :param size: (width, height) of the image.
     :param dash: (dash length, gap length) in metres along x for a dashed line, or None.
+    :param dash_start_m: where along x a dash starts (dashes repeat from there both ways).
     :return: (height, width) bool array.
     """
     x_m, y_m = floor_points(geometry, size)
@@ -79,12 +80,13 @@ def line_mask(polylines, width_m=LINE_WIDTH_M, geometry=KINECT, size=(WIDTH_PX, 
             mask |= distance_to_polyline(x_m, y_m, polyline) <= width_m / 2.0
         if dash is not None:
             dash_m, gap_m = dash
-            mask &= np.mod(x_m, dash_m + gap_m) < dash_m
+            mask &= np.mod(x_m - dash_start_m, dash_m + gap_m) < dash_m
     return mask
 
 
 def scene(polylines=(), width_m=LINE_WIDTH_M, line_bgr=YELLOW_BGR, floor_bgr=None,
-          geometry=KINECT, size=(WIDTH_PX, HEIGHT_PX), dash=None, above_horizon_bgr=None):
+          geometry=KINECT, size=(WIDTH_PX, HEIGHT_PX), dash=None, dash_start_m=0.0,
+          above_horizon_bgr=None):
     """
     Return a BGR camera image of lines on a floor.
 
@@ -95,6 +97,7 @@ def scene(polylines=(), width_m=LINE_WIDTH_M, line_bgr=YELLOW_BGR, floor_bgr=Non
     :param geometry: the camera.
     :param size: (width, height) of the image.
     :param dash: (dash, gap) lengths in metres for dashed lines.
+    :param dash_start_m: where along x a dash starts.
     :param above_horizon_bgr: the colour of what the camera sees above the floor's horizon
         (walls); the floor's colour by default.
     :return: the (height, width, 3) uint8 image.
@@ -107,7 +110,7 @@ def scene(polylines=(), width_m=LINE_WIDTH_M, line_bgr=YELLOW_BGR, floor_bgr=Non
         x_m, _ = floor_points(geometry, size)
         image[np.isnan(x_m)] = above_horizon_bgr
     if polylines:
-        image[line_mask(polylines, width_m, geometry, size, dash)] = line_bgr
+        image[line_mask(polylines, width_m, geometry, size, dash, dash_start_m)] = line_bgr
     return image
 
 

@@ -542,8 +542,11 @@ def test_dash_gap_over_one_band_leaves_only_that_band_unseen(gap_band):
 
     seen = [band_detection.found for band_detection in detection.bands]
     assert seen == [index != gap_band for index in range(len(DEFAULT_BANDS))]
+    # A gap with the line seen on both sides is the line's way (a dash gap): it counts for
+    # the line. Where the nearest or the farthest band sees nothing, nothing shows the line.
+    between_seen = 0 < gap_band < len(DEFAULT_BANDS) - 1
     assert detection.confidence == pytest.approx(
-        (len(DEFAULT_BANDS) - 1) / len(DEFAULT_BANDS))
+        1.0 if between_seen else (len(DEFAULT_BANDS) - 1) / len(DEFAULT_BANDS))
     assert detection.error == pytest.approx(expected_error(420))
     assert detection.nearest is detection.bands[1 if gap_band == 0 else 0]
 
@@ -748,6 +751,63 @@ def test_a_dashed_line_is_found_in_the_bands_its_dashes_cross(dash):
     # the bands gives the chain little support, may be left out (they count for little).
     if any(crossed):
         assert detection.bands[crossed.index(True)].found
+
+
+# The dashed course's paint: 0.30 m dashes, 0.15 m gaps; each phase a robot meets on it.
+COURSE_DASH_M = (0.30, 0.15)
+COURSE_DASH_PHASES_M = np.arange(0.0, sum(COURSE_DASH_M), 0.015)
+DASHED_LINES = {'straight': scenes.straight_line(), 'bend': scenes.arc_line(1.5)}
+
+
+@pytest.mark.parametrize('shape', DASHED_LINES)
+def test_dashes_ahead_never_make_the_line_less_sure_than_its_nearest_dash(shape):
+    x_m, _ = scenes.floor_points()
+    nearest_band_row = sum(DEFAULT_BANDS[0]) // 2
+    nearest_band_m = float(x_m[nearest_band_row, CENTRE_COLUMN])
+    dash_m, period_m = COURSE_DASH_M[0], sum(COURSE_DASH_M)
+    line = DASHED_LINES[shape]
+    for start_m in COURSE_DASH_PHASES_M:
+        image = scenes.scene([line], dash=COURSE_DASH_M, dash_start_m=start_m)
+        # The same picture with only the first dash that reaches the nearest band's floor.
+        first_dash_end_m = start_m + dash_m + period_m * math.ceil(
+            (nearest_band_m - start_m - dash_m) / period_m)
+        nearest_dash = image.copy()
+        with np.errstate(invalid='ignore'):
+            nearest_dash[~(x_m < first_dash_end_m)] = scenes.FLOOR_GREY
+        whole = LineDetector().detect(image, 'bgr8', scenes.KINECT)
+        alone = LineDetector().detect(nearest_dash, 'bgr8', scenes.KINECT)
+        # Farther dashes the chain leaves out across a gap are the line going on, not a
+        # second line.
+        assert whole.confidence >= alone.confidence - 1e-9, start_m
+
+
+@pytest.mark.parametrize('shape', DASHED_LINES)
+def test_a_dashed_line_seen_across_a_gap_is_trusted_like_a_solid_one(shape):
+    line = DASHED_LINES[shape]
+    crossed = 0
+    for start_m in COURSE_DASH_PHASES_M:
+        detection = LineDetector().detect(
+            scenes.scene([line], dash=COURSE_DASH_M, dash_start_m=start_m), 'bgr8',
+            scenes.KINECT)
+        seen = [index for index, band in enumerate(detection.bands) if band.found]
+        if len(seen) == seen[-1] - seen[0] + 1:
+            continue
+        crossed += 1
+        # The bands in a dash gap between seen dashes count for the line: the follower
+        # keeps full speed (confidence_for_full_speed 0.5) and more.
+        assert detection.confidence >= 0.6, start_m
+    assert crossed >= 5
+
+
+def test_bands_where_the_line_is_out_of_view_do_not_count_for_it():
+    # The line runs out of the view on the right between the second and the fifth band and
+    # comes back: along the image's edge, the link between them has the line's colour.
+    line = [(-0.5, -0.12), (0.30, -0.16), (0.42, -0.6), (0.58, -0.6), (0.68, -0.2),
+            (1.5, -0.2)]
+    detection = LineDetector().detect(scenes.scene([line]), 'bgr8', scenes.KINECT)
+    seen = [band.found for band in detection.bands]
+    assert seen == [True, True, False, False, True, True]
+    assert detection.confidence <= sum(seen) / len(seen)
 
 
 def test_the_nearest_stripe_in_driving_order_matches_the_first_look_exactly():
