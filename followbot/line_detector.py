@@ -889,8 +889,9 @@ class LineDetector:
         if continuation:
             # It shows the line's way as far as paint across the gap to it does.
             share = _paint_share(support(chain[-1], continuation[0]))
-            evidence += share * (sum(candidate.quality for candidate in continuation)
-                                 + _gap_evidence([chain[-1], *continuation], candidates, plan, support))
+            evidence += share * (
+                sum(candidate.quality for candidate in continuation)
+                + _gap_evidence([chain[-1], *continuation], candidates, plan, support))
         coverage = evidence / max(sum(plan.searched), 1)
         rivalry = min(rival_score / best_score, 1.0) if best_score > 0.0 else 0.0
         confidence = min(1.0, coverage) * (1.0 - RIVAL_WEIGHT * rivalry * rivalry)

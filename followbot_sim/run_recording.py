@@ -152,10 +152,10 @@ class RunRecording:
 
     def poll(self) -> bool:
         """
-        Start the simulator once the recorder has heard every topic for a moment; hold it while
-        the recorder lags.
+        Start the simulator once the recorder has heard every topic for a while, then hold it.
 
-        Call it after each spin.
+        It starts after the recorder has heard every topic for MATCH_SETTLE_S, and is held
+        while the recorder lags. Call it after each spin.
 
         :return: whether the simulator has been asked to start.
         """

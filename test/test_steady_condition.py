@@ -1,6 +1,7 @@
-"""A condition counted only once it has held for a while: the settle before a run relies on a match."""
+"""A condition counted once it has held for a while: runs wait so before relying on a match."""
 
 from followbot_sim.steady_condition import SteadyCondition
+import pytest
 
 
 class FakeWallClock:
@@ -15,36 +16,21 @@ class FakeWallClock:
         return self.now_s
 
 
-def test_a_condition_counts_only_after_it_held_for_the_settle_time():
+# Each step: (seconds the clock moves first, whether the condition holds, what update says).
+HELD_FOR_THE_SETTLE_TIME = [(0.0, True, False), (0.99, True, False), (0.01, True, True)]
+A_BREAK_STARTS_OVER = [(0.0, True, False), (0.8, False, False), (0.8, True, False),
+                       (0.8, True, False), (0.2, True, True)]
+NEVER_HOLDS = [(1.0, False, False)] * 5
+
+
+@pytest.mark.parametrize('steps', [HELD_FOR_THE_SETTLE_TIME, A_BREAK_STARTS_OVER, NEVER_HOLDS],
+                         ids=['held', 'break', 'never'])
+def test_a_condition_counts_only_once_it_held_without_a_break_for_the_settle_time(steps):
     clock = FakeWallClock()
     steady = SteadyCondition(1.0, clock)
-    assert not steady.update(True)
-    clock.now_s += 0.99
-    assert not steady.update(True)
-    clock.now_s += 0.01
-    assert steady.update(True)
-
-
-def test_a_break_starts_the_wait_over():
-    clock = FakeWallClock()
-    steady = SteadyCondition(1.0, clock)
-    steady.update(True)
-    clock.now_s += 0.8
-    assert not steady.update(False)
-    clock.now_s += 0.8
-    assert not steady.update(True)
-    clock.now_s += 0.8
-    assert not steady.update(True)
-    clock.now_s += 0.2
-    assert steady.update(True)
-
-
-def test_a_condition_that_does_not_hold_never_counts():
-    clock = FakeWallClock()
-    steady = SteadyCondition(0.5, clock)
-    for _ in range(5):
-        clock.now_s += 1.0
-        assert not steady.update(False)
+    for advance_s, holds, expected in steps:
+        clock.now_s += advance_s
+        assert steady.update(holds) == expected, (clock.now_s, holds)
 
 
 def test_no_settle_counts_at_once():
