@@ -389,6 +389,8 @@ class _Candidate(NamedTuple):
     area_px: int
     quality: float
     point: tuple
+    # Whether the stripe reaches the image's left or right side (the line may go on beyond).
+    at_side: bool = False
 
 
 @dataclass(frozen=True)
@@ -729,21 +731,23 @@ class LineDetector:
                 if quality < MIN_QUALITY:
                     continue
                 y_px = top + y_moment / area
+                image_width = self._image_shape[1]
                 if quality.along_band:
                     # The line runs through the band: where it enters and where it leaves are
                     # the points that chain with the bands above and below.
                     half_px = 0.5 * plan.expected_width_px[index]
-                    for x_px in (start + half_px, end - half_px):
-                        found.append((index, x_px, y_px, area, float(quality)))
+                    for x_px, at_side in ((start + half_px, start == 0),
+                                          (end - half_px, end == image_width)):
+                        found.append((index, x_px, y_px, area, float(quality), at_side))
                     continue
                 found.append((index, start + (x_moment - start * area) / area, y_px, area,
-                              float(quality)))
+                              float(quality), start == 0 or end == image_width))
         if not found:
             return [[] for _ in self._bands]
         points = self._points([item[1] for item in found], [item[2] for item in found],
                               geometry)
         candidates = [[] for _ in self._bands]
-        for (index, x_px, y_px, area, quality), point in zip(found, points):
+        for (index, x_px, y_px, area, quality, at_side), point in zip(found, points):
             previous = self._previous_points[index]
             if previous is not None:
                 moved = math.dist(previous, point) / plan.jump
@@ -751,7 +755,8 @@ class LineDetector:
                     continue
                 # Where the line was a frame ago it most likely is still.
                 quality *= 1.0 - TRACKING_WEIGHT * moved * moved
-            candidates[index].append(_Candidate(index, x_px, y_px, area, quality, point))
+            candidates[index].append(
+                _Candidate(index, x_px, y_px, area, quality, point, at_side))
         return [sorted(band, key=lambda candidate: -candidate.quality)[
             :MAX_CANDIDATES_PER_BAND] for band in candidates]
 
@@ -892,12 +897,38 @@ class LineDetector:
             evidence += share * (
                 sum(candidate.quality for candidate in continuation)
                 + _gap_evidence([chain[-1], *continuation], candidates, plan, support))
-        coverage = evidence / max(sum(plan.searched), 1)
+        coverage = evidence / max(self._bands_in_view(chain, candidates, plan), 1)
         rivalry = min(rival_score / best_score, 1.0) if best_score > 0.0 else 0.0
         confidence = min(1.0, coverage) * (1.0 - RIVAL_WEIGHT * rivalry * rivalry)
         if confidence < self._config.min_confidence:
             return [], confidence
         return chain, confidence
+
+    def _bands_in_view(self, chain, candidates, plan) -> int:
+        """
+        Return how many searched bands could see the line the chain found.
+
+        Where the chain's last stripe reaches the image's side, the last two lead, going on
+        straight, out of the image before a farther band, and no farther band holds a stripe,
+        the line has left the view (a sharp turn): the bands beyond cannot see it, and their
+        seeing nothing says nothing against it.
+        """
+        searched = plan.searched
+        if len(chain) < 2 or not chain[-1].at_side or any(candidates[chain[-1].band + 1:]):
+            return sum(searched)
+        near, far = chain[-2], chain[-1]
+        rows = far.y_px - near.y_px
+        width = self._image_shape[1]
+        in_view = sum(searched[:far.band + 1])
+        for band in range(far.band + 1, len(searched)):
+            top, bottom = self._bands[band]
+            centre_y_px = 0.5 * (top + bottom - 1)
+            x_px = far.x_px + (far.x_px - near.x_px) * (centre_y_px - far.y_px) / rows if (
+                rows) else far.x_px
+            if not 0.0 <= x_px <= width - 1:
+                break
+            in_view += searched[band]
+        return in_view
 
     def _clean_detection(self, stripes_by_band, plan, geometry, width, height):
         """

@@ -810,6 +810,28 @@ def test_bands_where_the_line_is_out_of_view_do_not_count_for_it():
     assert detection.confidence <= sum(seen) / len(seen)
 
 
+@pytest.mark.parametrize('heading_deg', (60.0, 70.0))
+def test_bands_a_line_leaving_the_view_at_the_side_cannot_reach_do_not_doubt_it(heading_deg):
+    # A sharp turn: the line crosses the near bands 0.30 m ahead and leaves the image on
+    # the left.
+    heading_rad = math.radians(heading_deg)
+    line = scenes.straight_line(lateral_m=-0.30 * math.tan(heading_rad), heading_rad=heading_rad)
+    detection = LineDetector().detect(scenes.scene([line]), 'bgr8', scenes.KINECT)
+    seen = [band.found for band in detection.bands]
+    assert seen[0] and not seen[-1]
+    assert detection.confidence >= 0.8
+
+
+def test_bands_beyond_a_line_ending_in_view_count_against_it():
+    # The same bands see nothing, but the line ends in the middle of the view: it may be
+    # anything, as far as those bands tell.
+    line = [(-0.5, 0.0), (0.52, 0.0)]
+    detection = LineDetector().detect(scenes.scene([line]), 'bgr8', scenes.KINECT)
+    seen = [band.found for band in detection.bands]
+    assert seen[0] and not seen[-1]
+    assert detection.confidence <= sum(seen) / len(seen) + 1e-9
+
+
 def test_the_nearest_stripe_in_driving_order_matches_the_first_look_exactly():
     # The clean path's floor points are the band centres'; the chain is the same line.
     line = scenes.arc_line(1.5)
