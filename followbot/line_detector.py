@@ -156,6 +156,10 @@ CENTRE_PREFERENCE = 0.05
 FEW_POINTS = 16
 # A rival chain as strong as the chosen one takes this share of the confidence.
 RIVAL_WEIGHT = 0.8
+# How much a band that cannot see a line which left the view at the image's side counts
+# against it: not fully (it cannot see it), not nothing (the robot turns blind there; on
+# realistic frames full trust had the robot enter corners faster and lose the line after them).
+OUT_OF_VIEW_BAND_WEIGHT = 0.5
 
 
 @dataclass(frozen=True)
@@ -904,14 +908,14 @@ class LineDetector:
             return [], confidence
         return chain, confidence
 
-    def _bands_in_view(self, chain, candidates, plan) -> int:
+    def _bands_in_view(self, chain, candidates, plan) -> float:
         """
         Return how many searched bands could see the line the chain found.
 
         Where the chain's last stripe reaches the image's side, the last two lead, going on
         straight, out of the image before a farther band, and no farther band holds a stripe,
         the line has left the view (a sharp turn): the bands beyond cannot see it, and their
-        seeing nothing says nothing against it.
+        seeing nothing counts only OUT_OF_VIEW_BAND_WEIGHT against it.
         """
         searched = plan.searched
         if len(chain) < 2 or not chain[-1].at_side or any(candidates[chain[-1].band + 1:]):
@@ -928,7 +932,7 @@ class LineDetector:
             if not 0.0 <= x_px <= width - 1:
                 break
             in_view += searched[band]
-        return in_view
+        return in_view + OUT_OF_VIEW_BAND_WEIGHT * (sum(searched) - in_view)
 
     def _clean_detection(self, stripes_by_band, plan, geometry, width, height):
         """

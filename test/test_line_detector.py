@@ -811,7 +811,7 @@ def test_bands_where_the_line_is_out_of_view_do_not_count_for_it():
 
 
 @pytest.mark.parametrize('heading_deg', (60.0, 70.0))
-def test_bands_a_line_leaving_the_view_at_the_side_cannot_reach_do_not_doubt_it(heading_deg):
+def test_bands_a_line_leaving_the_view_at_the_side_cannot_reach_count_less_against_it(heading_deg):
     # A sharp turn: the line crosses the near bands 0.30 m ahead and leaves the image on
     # the left.
     heading_rad = math.radians(heading_deg)
@@ -819,7 +819,8 @@ def test_bands_a_line_leaving_the_view_at_the_side_cannot_reach_do_not_doubt_it(
     detection = LineDetector().detect(scenes.scene([line]), 'bgr8', scenes.KINECT)
     seen = [band.found for band in detection.bands]
     assert seen[0] and not seen[-1]
-    assert detection.confidence >= 0.8
+    # More sure than the share of bands that see it: those beyond count only half.
+    assert detection.confidence > sum(seen) / len(seen)
 
 
 def test_bands_beyond_a_line_ending_in_view_count_against_it():
