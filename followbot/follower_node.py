@@ -44,6 +44,9 @@ IMAGE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.BEST_EFFORT)
 # How long the final zero Twist may wait to be acknowledged by the subscribers at shutdown.
 STOP_ACK_TIMEOUT = Duration(seconds=0.5)
+# Debug images kept for a slow subscriber: half a second of a 20 Hz camera, so a video that
+# holds the run from that lag on (followbot --video) gets every one.
+DEBUG_IMAGE_QUEUE_DEPTH = 10
 NODE_NAME = 'follower'
 STATUS_NAME = 'followbot: follower'
 IMAGE_TOPIC = 'camera/rgb/image_raw'
@@ -223,7 +226,10 @@ class FollowerNode(Node):
         self._camera_geometry = None
         self._cmd_vel_publisher = self.create_publisher(
             TwistStamped if self._cmd_vel_stamped else Twist, 'cmd_vel', 10)
-        self._debug_image_publisher = self.create_publisher(Image, '~/debug_image', 1)
+        # A video takes every debug image; each is only sent while someone subscribes, and
+        # in a fast lockstep run a newer one came before the last was sent.
+        self._debug_image_publisher = self.create_publisher(
+            Image, '~/debug_image', DEBUG_IMAGE_QUEUE_DEPTH)
         self._mask_publisher = self.create_publisher(Image, '~/mask', 1)
         self._status_publisher = self.create_publisher(DiagnosticArray, '~/status', 10)
         # camera_info is subscribed first: when it and an image are ready together, the

@@ -31,11 +31,11 @@ from followbot_sim import soak
 from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
-from followbot_sim.run_recording import (add_record_options, HoldReport, PAUSE_SERVICE,
+from followbot_sim.run_recording import (add_record_options, drain, HoldReport, PAUSE_SERVICE,
                                          RunRecording)
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
-from followbot_sim.video import add_video_node, check_video_path, VideoPathError
+from followbot_sim.video import add_video_node, check_video_path, VideoHold, VideoPathError
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -536,7 +536,9 @@ def main(argv=None) -> int:
     children = (simulator, *followers)
     soak_samples = []
     started_s = next_sample_s = time.monotonic()
-    video_hold = HoldReport('the video')
+    video_report = HoldReport('the video')
+    video_hold = None if video is None else VideoHold(video)
+    gate_paused = None
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
@@ -545,25 +547,34 @@ def main(argv=None) -> int:
                 soak_samples.append(_soak_sample(
                     time.monotonic() - started_s, children, monitor.summaries))
             if video is not None and not video.ready:
-                if report := video_hold.line(lambda: ', '.join(video.waiting_for())):
+                if report := video_report.line(lambda: ', '.join(video.waiting_for())):
                     print(f'[followbot] {report}', flush=True)
                 continue
+            video_lags = video_hold is not None and video_hold.update()
+            if video_hold is not None and (report := video_hold.report()):
+                print(f'[followbot] {report}', flush=True)
             if recording is not None:
                 started = recording.started
-                if recording.poll() and not started:
+                if recording.poll(also_hold=video_lags) and not started:
                     print('[followbot] Recorder hears every topic: the simulation starts.',
                           flush=True)
                 elif report := recording.wait_report():
                     print(f'[followbot] {report}', flush=True)
             elif start_gate is not None:
-                if not start_gate.asked:
-                    start_gate.ask(SetBool.Request(data=False))
+                # Started once connected; held while the video lags.
+                if video_lags != gate_paused:
+                    gate_paused = video_lags
+                    start_gate.ask(SetBool.Request(data=video_lags))
                 start_gate.poll()
     finally:
-        if recording is not None and simulator.process.poll() is not None:
-            # The run ended on its own: the recorder takes what the followers sent last (the
-            # answer to the last frame) while they still run, before their buffers go.
-            recording.drain(executor)
+        if simulator.process.poll() is not None:
+            # The run ended on its own: the recorder and the video take what the followers
+            # sent last (the answer to the last frame) while they still run, before their
+            # buffers go.
+            if recording is not None:
+                recording.drain(executor)
+            if video is not None:
+                drain(executor, lambda: video.frame_time_s)
         # The simulator ends on its own after --duration; stop the follower first so its
         # final zero Twist still reaches a running simulator on Ctrl-C.
         exit_codes = {child.name: child.stop() for child in (*followers, simulator)}
@@ -576,6 +587,9 @@ def main(argv=None) -> int:
         executor.shutdown()
         if recording is not None:
             print(f'[followbot] recorded {recording.close()}', flush=True)
+        if video_hold is not None and video_hold.holds:
+            print(f'[followbot] time held {video_hold.holds} times for the video to catch up',
+                  flush=True)
         monitor.destroy_node()
         rclpy.try_shutdown(context=context)
     for label, summary in monitor.summaries.items():

@@ -53,6 +53,25 @@ RESUME_LAG_S = 0.25
 WAIT_REPORT_S = 10.0
 
 
+def drain(executor, progress) -> None:
+    """
+    Spin until a consumer has taken everything it received: its progress stands still.
+
+    :param executor: the executor the consumer's node is in.
+    :param progress: returns a value that changes while the consumer works through its queue
+        (messages written, the newest frame's time); spinning stops once it has not changed
+        for DRAIN_QUIET_S of wall time, or after DRAIN_LIMIT_S.
+    """
+    now_s = time.monotonic()
+    deadline_s = now_s + DRAIN_LIMIT_S
+    last, last_change_s = progress(), now_s
+    while now_s < deadline_s and now_s - last_change_s < DRAIN_QUIET_S:
+        executor.spin_once(timeout_sec=DRAIN_SPIN_S)
+        now_s = time.monotonic()
+        if progress() != last:
+            last, last_change_s = progress(), now_s
+
+
 def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list:
     """
     Return the topics a run's recording holds, as (topic, message type) pairs.
@@ -63,6 +82,34 @@ def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list
     """
     camera = COMPRESSED_CAMERA_TOPIC if compressed else RAW_CAMERA_TOPIC
     return [camera, *RUN_TOPICS, (clock_topic, CLOCK_TYPE)]
+
+
+class LagHold:
+    """Hold from a lag of ``hold_lag_s`` until it is back under ``resume_lag_s``."""
+
+    def __init__(self, hold_lag_s: float = HOLD_LAG_S, resume_lag_s: float = RESUME_LAG_S):
+        """
+        Start not holding.
+
+        :param hold_lag_s: the lag (simulated seconds) from which to hold.
+        :param resume_lag_s: the lag under which to let go again.
+        """
+        self._hold_lag_s = hold_lag_s
+        self._resume_lag_s = resume_lag_s
+        self.holding = False
+        self.holds = 0
+
+    def update(self, lag_s: float) -> bool:
+        """
+        Take the present lag.
+
+        :param lag_s: how far behind (simulated seconds) the slow consumer is.
+        :return: whether time should stand still until it catches up.
+        """
+        holding = lag_s > (self._resume_lag_s if self.holding else self._hold_lag_s)
+        self.holds += holding and not self.holding
+        self.holding = holding
+        return holding
 
 
 class HoldReport:
@@ -145,18 +192,25 @@ class RunRecording:
         self._pause_requests = AnsweredRequests(self._pause_client)
         # The recorder subscribes once it sees a publisher, so its side matches first.
         self._connected = SteadyCondition()
+        self._lag_hold = LagHold()
         self.started = False
         self.holding = False
-        self.holds = 0
         self._hold_report = HoldReport('the recorder')
 
-    def poll(self) -> bool:
+    @property
+    def holds(self) -> int:
+        """Return how many times time was held for the recorder to catch up."""
+        return self._lag_hold.holds
+
+    def poll(self, also_hold: bool = False) -> bool:
         """
         Start the simulator once the recorder has heard every topic for a while, then hold it.
 
         It starts after the recorder has heard every topic for MATCH_SETTLE_S, and is held
         while the recorder lags. Call it after each spin.
 
+        :param also_hold: hold the simulator for another reason too (another consumer lags):
+            this object owns the simulator's pause while it records.
         :return: whether the simulator has been asked to start.
         """
         self._pause_requests.poll()
@@ -166,9 +220,10 @@ class RunRecording:
                 self._set_paused(False)
                 self.started = True
             return self.started
-        holding = self.holding
-        if self.should_hold() != holding:
-            self._set_paused(self.holding)
+        holding = self.should_hold() or also_hold
+        if holding != self.holding:
+            self.holding = holding
+            self._set_paused(holding)
         return True
 
     def lag_s(self) -> float:
@@ -184,11 +239,7 @@ class RunRecording:
 
         :return: True from a lag of HOLD_LAG_S until it is back under RESUME_LAG_S.
         """
-        lag_s = self.lag_s()
-        holding = lag_s > (RESUME_LAG_S if self.holding else HOLD_LAG_S)
-        self.holds += holding and not self.holding
-        self.holding = holding
-        return holding
+        return self._lag_hold.update(self.lag_s())
 
     def _set_paused(self, paused: bool) -> None:
         self._pause_requests.ask(SetBool.Request(data=paused))
@@ -215,14 +266,7 @@ class RunRecording:
         :param executor: the executor the recorder is in.
         """
         writer = self.recorder.writer
-        now_s = time.monotonic()
-        deadline_s = now_s + DRAIN_LIMIT_S
-        count, last_change_s = writer.message_count, now_s
-        while now_s < deadline_s and now_s - last_change_s < DRAIN_QUIET_S:
-            executor.spin_once(timeout_sec=DRAIN_SPIN_S)
-            now_s = time.monotonic()
-            if writer.message_count != count:
-                count, last_change_s = writer.message_count, now_s
+        drain(executor, lambda: writer.message_count)
 
     def close(self) -> str:
         """

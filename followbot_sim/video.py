@@ -8,12 +8,16 @@ camera is, draws the top-down view with :mod:`followbot_sim.topdown` and writes 
 per ``period_s`` of simulated time, stamped by the camera images, so a lockstep run at any
 speed gives a video that plays at real speed. A period with no new camera frame repeats the
 previous video frame (and the first frame stands in for the periods before it), so the video
-lasts exactly as long as the run.
+lasts exactly as long as the run. A run can be faster than the video writes, and on a loaded
+machine a debug image can be lost on the way and sent again only later: :class:`VideoHold`
+tells the launcher when to hold simulated time until the video has caught up, so a lockstep
+run's video gets every camera frame.
 """
 
 import math
 import os
 from pathlib import Path
+import time
 
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray
@@ -22,13 +26,15 @@ from followbot.follower_node import NODE_NAME as FOLLOWER_NODE
 from followbot.image_conversion import image_to_array, ImageConversionError, to_bgr
 from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.course_file import load_course
+from followbot_sim.run_recording import LagHold
 from followbot_sim.score import score_values
 from followbot_sim.topdown import side_by_side, TopDownView
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import GetParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
-from rclpy.qos import QoSProfile
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
 
 # FourCC of the codec for each file type: both ship with every OpenCV build (no FFmpeg
@@ -46,6 +52,18 @@ STAMP_TOLERANCE_S = 1e-6
 BYTES_PER_MB = 1e6
 # Wall seconds between looks for the simulator's parameter service and its answer.
 ASK_PERIOD_S = 0.1
+# The simulated clock (relative: the robot's own under a namespace); only its newest value.
+CLOCK_TOPIC = 'clock'
+CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+# Time is held while the video's newest camera frame is this far (simulated seconds) behind
+# the clock, and let go under VIDEO_RESUME_LAG_S: a few frames, so a debug image lost on the
+# way is still in the follower's history (DEBUG_IMAGE_QUEUE_DEPTH) when DDS sends it again.
+VIDEO_HOLD_LAG_S = 0.12
+VIDEO_RESUME_LAG_S = 0.06
+# Wall seconds a held run waits for a video that makes no progress before it runs on without
+# waiting for the video again: longer than DDS takes to send a lost sample again (Fast DDS
+# asks for it with its heartbeat, every 3 s by default).
+VIDEO_STALL_S = 10.0
 
 
 class VideoPathError(ValueError):
@@ -149,8 +167,12 @@ class VideoNode(Node):
         self._frame_size = None
         # Camera frames written: the video's other frames repeat one (and time 0 has none).
         self._camera_frames_used = 0
+        # Simulated seconds of the newest clock and of the newest camera frame seen.
+        self._clock_s = None
+        self.frame_time_s = None
         self._debug_image_subscription = self.create_subscription(
             Image, DEBUG_IMAGE_TOPIC, self.debug_image_callback, VIDEO_QOS)
+        self.create_subscription(Clock, CLOCK_TOPIC, self.clock_callback, CLOCK_QOS)
         self._ground_truth_subscription = self.create_subscription(
             Odometry, GROUND_TRUTH_TOPIC, self.ground_truth_callback, POSE_QOS)
         self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback, 10)
@@ -211,6 +233,20 @@ class VideoNode(Node):
             self._period_s = 1.0 / values['camera_rate_hz']
         self._schedule = FrameSchedule(self._period_s)
 
+    def clock_callback(self, msg: Clock) -> None:
+        """Keep the newest simulated time."""
+        self._clock_s = messages.seconds(msg.clock)
+
+    def lag_s(self) -> float:
+        """
+        Return how far the video's newest camera frame is behind the simulated clock.
+
+        :return: simulated seconds; 0 before the first frame or clock.
+        """
+        if self._clock_s is None or self.frame_time_s is None:
+            return 0.0
+        return max(0.0, self._clock_s - self.frame_time_s)
+
     def ground_truth_callback(self, msg: Odometry) -> None:
         """Extend the trail to the robot's true position."""
         position = msg.pose.pose.position
@@ -238,6 +274,7 @@ class VideoNode(Node):
         if self._writer is None and not self._open(camera_bgr):
             return
         time_s = messages.seconds(msg.header.stamp)
+        self.frame_time_s = time_s
         count = self._schedule.due(time_s)
         if count == 0:
             return
@@ -292,6 +329,55 @@ class VideoNode(Node):
         self.get_logger().info(
             f'Video {self._path}: {frames} frames, {frames * self._period_s:.1f} s at '
             f'{1.0 / self._period_s:g} frames/s, {size_mb:.1f} MB{repeats}.')
+
+
+class VideoHold:
+    """When a run should stand still for its video to catch up, and when to stop waiting."""
+
+    def __init__(self, video: VideoNode, clock=time.monotonic):
+        """
+        Watch a video.
+
+        :param video: the video node.
+        :param clock: returns the wall time in seconds (monotonic).
+        """
+        self._video = video
+        self._clock = clock
+        self._lag_hold = LagHold(VIDEO_HOLD_LAG_S, VIDEO_RESUME_LAG_S)
+        self._progress = (None, clock())
+        self.gave_up = False
+        self._reported = False
+
+    @property
+    def holds(self) -> int:
+        """Return how many times time was held for the video."""
+        return self._lag_hold.holds
+
+    def update(self) -> bool:
+        """
+        Tell whether time should stand still now; call it after each spin.
+
+        :return: True while the video lags, unless it has made no progress for VIDEO_STALL_S
+            of wall time while held (frames lost on the way): then never again.
+        """
+        if self.gave_up:
+            return False
+        now_s = self._clock()
+        frame_time_s = self._video.frame_time_s
+        if frame_time_s != self._progress[0] or not self._lag_hold.holding:
+            self._progress = (frame_time_s, now_s)
+        if self._lag_hold.holding and now_s - self._progress[1] > VIDEO_STALL_S:
+            self.gave_up = True
+            return False
+        return self._lag_hold.update(self._video.lag_s())
+
+    def report(self) -> str | None:
+        """Return, once, the line saying that the run no longer waits for the video."""
+        if not self.gave_up or self._reported:
+            return None
+        self._reported = True
+        return (f'The video made no progress for {VIDEO_STALL_S:g} s while time was held for '
+                'it: time runs on without waiting for it.')
 
 
 def add_video_node(executor, path, simulator: str, period_s: float | None = None) -> VideoNode:

@@ -8,7 +8,9 @@ from conftest import child_environment, run_domain_id, spin_until
 import cv2
 from followbot_sim.course_file import load_course
 from followbot_sim.topdown import side_by_side, TopDownView
-from followbot_sim.video import check_video_path, FrameSchedule, VideoNode, VideoPathError
+from followbot_sim.video import (check_video_path, FrameSchedule, VIDEO_HOLD_LAG_S,
+                                 VIDEO_RESUME_LAG_S, VIDEO_STALL_S, VideoHold, VideoNode,
+                                 VideoPathError)
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -170,6 +172,64 @@ def test_lockstep_run_writes_a_video_as_long_as_the_run(tmp_path, file_name, per
     assert not np.array_equal(frames[0][:, :CAMERA_WIDTH_PX], frames[-1][:, :CAMERA_WIDTH_PX])
     assert not np.array_equal(frames[0][:, CAMERA_WIDTH_PX:], frames[-1][:, CAMERA_WIDTH_PX:])
     assert f'Video {video}: {len(frames)} frames' in result.stdout
+
+
+class LaggingVideo:
+    """Stands for a video node: its newest camera frame and the clock, set by the test."""
+
+    def __init__(self):
+        """Start at simulated time 10 s with the frame of that time."""
+        self.clock_s = 10.0
+        self.frame_time_s = 10.0
+
+    def lag_s(self) -> float:
+        """Return how far the frame is behind the clock."""
+        return self.clock_s - self.frame_time_s
+
+
+class WallClock:
+    """A wall clock the test moves by hand."""
+
+    def __init__(self):
+        """Start at 100 s."""
+        self.now_s = 100.0
+
+    def __call__(self) -> float:
+        """Return the time now."""
+        return self.now_s
+
+
+def test_time_is_held_while_the_video_lags_and_let_go_once_it_caught_up():
+    video, wall = LaggingVideo(), WallClock()
+    hold = VideoHold(video, wall)
+    # (frame time behind the clock, expected hold) in order: hysteresis between the two.
+    steps = [(VIDEO_HOLD_LAG_S - 0.05, False), (VIDEO_HOLD_LAG_S + 0.05, True),
+             (VIDEO_RESUME_LAG_S + 0.05, True), (VIDEO_RESUME_LAG_S - 0.05, False)]
+    for behind_s, expected in steps:
+        video.frame_time_s = video.clock_s - behind_s
+        wall.now_s += 1.0
+        assert hold.update() == expected, behind_s
+    assert hold.holds == 1
+    assert hold.report() is None
+
+
+def test_a_held_run_stops_waiting_for_a_video_that_makes_no_progress():
+    video, wall = LaggingVideo(), WallClock()
+    hold = VideoHold(video, wall)
+    video.frame_time_s = video.clock_s - 2 * VIDEO_HOLD_LAG_S
+    assert hold.update()
+    # Progress, however slow, keeps the hold.
+    for _ in range(3):
+        wall.now_s += 0.9 * VIDEO_STALL_S
+        video.frame_time_s += 0.01
+        assert hold.update()
+    # Its frames lost on the way, the video stands still: time runs on, for good.
+    wall.now_s += 1.1 * VIDEO_STALL_S
+    assert not hold.update()
+    assert 'no progress' in hold.report()
+    assert hold.report() is None
+    video.frame_time_s = video.clock_s - 10 * VIDEO_HOLD_LAG_S
+    assert not hold.update()
 
 
 class ParameterHolder:
