@@ -194,6 +194,7 @@ class RunRecording:
         self._connected = SteadyCondition()
         self._lag_hold = LagHold()
         self.started = False
+        # Whether the simulator is held now (asked to pause, or left out of the executor).
         self.holding = False
         self._hold_report = HoldReport('the recorder')
 
@@ -225,6 +226,22 @@ class RunRecording:
             self.holding = holding
             self._set_paused(holding)
         return True
+
+    def hold_in(self, executor, simulator) -> None:
+        """
+        Hold time for a simulator node this process spins, while the recorder lags.
+
+        For a caller with no pause service to ask (the scorecard runs the simulator in its own
+        executor): the simulator leaves the executor while the recorder lags, so simulated
+        time stands still, and comes back once it caught up. Call it after each spin.
+
+        :param executor: the executor that spins the simulator and the recorder.
+        :param simulator: the simulator node.
+        """
+        holding = self.should_hold()
+        if holding != self.holding:
+            self.holding = holding
+            (executor.remove_node if holding else executor.add_node)(simulator)
 
     def lag_s(self) -> float:
         """Return how far (simulated seconds) the recorded /clock is behind the recorder's."""

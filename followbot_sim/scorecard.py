@@ -708,9 +708,9 @@ def run_scenario(context: Context, scenario: Scenario, sim_parameters=(),
         start_s = time.monotonic()
         while True:
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
-            if recording is not None and recording.holding != recording.should_hold():
+            if recording is not None:
                 # Time stands still (the simulator is not spun) while the recorder catches up.
-                (executor.remove_node if recording.holding else executor.add_node)(simulator)
+                recording.hold_in(executor, simulator)
             samples.take(world, tracker)
             if tracker.laps_completed >= 1:
                 end_reason = END_LAP

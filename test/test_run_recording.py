@@ -10,11 +10,19 @@ from rosgraph_msgs.msg import Clock
 
 SIM_TIME_S = 5.0
 NANOSECONDS = 1_000_000_000
+# (recorded /clock, expected hold) in order: hysteresis between the two thresholds.
+LAG_STEPS = [(SIM_TIME_S - HOLD_LAG_S + 0.1, False), (SIM_TIME_S - HOLD_LAG_S - 0.1, True),
+             (SIM_TIME_S - RESUME_LAG_S - 0.1, True), (SIM_TIME_S - RESUME_LAG_S + 0.1, False),
+             (SIM_TIME_S - HOLD_LAG_S + 0.1, False)]
 
 
 @pytest.fixture
 def recording_at_sim_time(ros_context, tmp_path):
-    """Yield a RunRecording whose clock reads SIM_TIME_S, from a real /clock publisher."""
+    """
+    Yield a RunRecording whose clock reads SIM_TIME_S, from a real /clock publisher.
+
+    The executor that spins it is ``recording.test_executor``.
+    """
     clock_node = Node('clock_source', context=ros_context)
     recording = RunRecording(tmp_path / 'run.mcap', None, context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
@@ -25,6 +33,7 @@ def recording_at_sim_time(ros_context, tmp_path):
     sim_time.clock.sec = int(SIM_TIME_S)
     assert spin_until(executor, lambda: publisher.publish(sim_time) or (
         recording.recorder.get_clock().now().nanoseconds == SIM_TIME_S * NANOSECONDS))
+    recording.test_executor = executor
     yield recording
     executor.shutdown()
     recording.close()
@@ -35,15 +44,29 @@ def test_time_is_held_from_a_lag_of_a_second_until_the_recorder_caught_up(
         recording_at_sim_time):
     recording = recording_at_sim_time
     assert not recording.should_hold()  # Nothing recorded yet: no lag known.
-    # (recorded /clock, expected hold) in order: hysteresis between the two thresholds.
-    steps = [(SIM_TIME_S - HOLD_LAG_S + 0.1, False), (SIM_TIME_S - HOLD_LAG_S - 0.1, True),
-             (SIM_TIME_S - RESUME_LAG_S - 0.1, True), (SIM_TIME_S - RESUME_LAG_S + 0.1, False),
-             (SIM_TIME_S - HOLD_LAG_S + 0.1, False)]
-    for recorded_s, expected in steps:
+    for recorded_s, expected in LAG_STEPS:
         recording.recorder.progress_ns = int(recorded_s * NANOSECONDS)
         assert recording.should_hold() == expected, recorded_s
     assert recording.holds == 1
     assert 'time held 1 times' in recording.close()
+
+
+def test_a_simulator_spun_in_this_process_stands_still_while_the_recorder_lags(
+        recording_at_sim_time, ros_context):
+    # The scorecard's way: no pause service; the simulator node leaves the executor.
+    recording, executor = recording_at_sim_time, recording_at_sim_time.test_executor
+    simulator = Node('simulator_stand_in', context=ros_context)
+    executor.add_node(simulator)
+    try:
+        for recorded_s, held in LAG_STEPS:
+            recording.recorder.progress_ns = int(recorded_s * NANOSECONDS)
+            recording.hold_in(executor, simulator)
+            assert recording.holding == held, recorded_s
+            assert (simulator in executor.get_nodes()) == (not held), recorded_s
+        assert recording.holds == 1
+    finally:
+        executor.remove_node(simulator)
+        simulator.destroy_node()
 
 
 @pytest.mark.parametrize('compressed, camera', [
