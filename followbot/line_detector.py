@@ -719,6 +719,7 @@ class LineDetector:
         if self._strength is not None:
             count, rows, width = len(self._bands), layout.rows, layout.width
             strength_sums = self._strength.reshape(count, rows, width).sum(axis=1)
+        image_width = self._image_shape[1]
         found = []
         for index, stripes in enumerate(stripes_by_band):
             if stripes is None or not plan.searched[index]:
@@ -735,7 +736,6 @@ class LineDetector:
                 if quality < MIN_QUALITY:
                     continue
                 y_px = top + y_moment / area
-                image_width = self._image_shape[1]
                 if quality.along_band:
                     # The line runs through the band: where it enters and where it leaves are
                     # the points that chain with the bands above and below.
@@ -1288,20 +1288,28 @@ class _LinkSupport:
         self._model = detector._floor_model
         self._count = len(detector._bands)
         self._plan = plan
+        # (id of the nearer, id of the farther) -> (support, whether it came from a path
+        # inside the view rather than along its edge)
         self._cache = {}
-        self._left_view = set()
 
     def __call__(self, near, far) -> float:
         """Return the support of the link from a nearer candidate to a farther one."""
+        return self._measured(near, far)[0]
+
+    def in_view(self, near, far) -> bool:
+        """Tell whether the link's support comes from a path inside the view, not its edge."""
+        return self._measured(near, far)[1]
+
+    def _measured(self, near, far) -> tuple:
         key = (id(near), id(far))
         if key not in self._cache:
             self._cache[key] = self._measure(near, far)
         return self._cache[key]
 
-    def _measure(self, near, far) -> float:
+    def _measure(self, near, far) -> tuple:
         straight = self._path_support([(near.x_px, near.y_px), (far.x_px, far.y_px)], near, far)
         if straight >= FULL_LINK_SUPPORT:
-            return straight
+            return straight, True
         # A line bending between two stripes near one side of the view may run out of it
         # and back: look along the image's edge there too.
         width = self._image.shape[1]
@@ -1312,15 +1320,9 @@ class _LinkSupport:
                           (far.x_px, far.y_px)]
                 along_edge = self._path_support(detour, near, far)
                 if along_edge > straight:
-                    self._left_view.add((id(near), id(far)))
-                    return along_edge
-                return straight
-        return straight
-
-    def in_view(self, near, far) -> bool:
-        """Tell whether the link's support comes from a path inside the view, not its edge."""
-        self(near, far)
-        return (id(near), id(far)) not in self._left_view
+                    return along_edge, False
+                return straight, True
+        return straight, True
 
     def joined(self, chosen, other) -> bool:
         """
