@@ -11,8 +11,12 @@ request that did arrive sends it again.
 
 import time
 
+from std_srvs.srv import SetBool
+
 # Wall seconds before an unanswered request is sent again.
 RETRY_S = 1.0
+# The simulator's service (relative to its node name) that pauses (true) or runs (false) it.
+PAUSE_SERVICE = 'pause'
 
 
 class AnsweredRequests:
@@ -72,3 +76,42 @@ class AnsweredRequests:
             self._client.remove_pending_request(self._future)
         self._future = None
         self._sent_s = -float('inf')
+
+
+class SimulatorPause:
+    """A simulator's pause service, asked once per change of mind and again until answered."""
+
+    def __init__(self, node, simulator_name: str | None, retry_s: float = RETRY_S):
+        """
+        Make the client.
+
+        :param node: the node the client belongs to.
+        :param simulator_name: the simulator's fully qualified node name, such as
+            /followbot_sim; None when there is no simulator to ask (every request then counts
+            as answered).
+        :param retry_s: wall seconds to wait for an answer before asking again.
+        """
+        self._client = None if simulator_name is None else node.create_client(
+            SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
+        self._requests = AnsweredRequests(self._client, retry_s)
+        # What was asked last: True paused, False running, None nothing yet.
+        self.paused = None
+
+    @property
+    def ready(self) -> bool:
+        """Tell whether the service is there to ask (always, with no simulator to ask)."""
+        return self._client is None or self._client.service_is_ready()
+
+    def ask_paused(self, paused: bool) -> None:
+        """Ask for the simulator paused or running, unless that is what was asked last."""
+        if paused != self.paused:
+            self.paused = paused
+            self._requests.ask(SetBool.Request(data=paused))
+
+    def poll(self) -> bool:
+        """
+        Send the latest request again if its last copy went unanswered.
+
+        :return: whether the latest request has been answered.
+        """
+        return self._requests.poll()

@@ -45,7 +45,7 @@ from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSig
 from followbot.transport import (environment_without_profile, keep_large_buffers,
                                  USER_CONFIGURATION_VARIABLES)
 from followbot_sim import real_frames
-from followbot_sim.answered_requests import AnsweredRequests
+from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.course_file import load_course
 from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.realism import CLEAN, PRESET_NAMES, realise, Realism
@@ -59,7 +59,6 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_srvs.srv import SetBool
 
 SECTIONS = ('perception', 'real_frames', 'latency', 'simulation')
 # The realism presets whose simulator speed is measured side by side (issue 14's targets: lab
@@ -516,7 +515,7 @@ class _ScoreListener(Node):
         self.summary = {}
         self.subscription = self.create_subscription(
             DiagnosticArray, '/diagnostics', self.callback, 10)
-        self.pause_client = self.create_client(SetBool, f'/{SIMULATOR_NODE}/pause')
+        self.pause = SimulatorPause(self, f'/{SIMULATOR_NODE}')
 
     def callback(self, msg: DiagnosticArray) -> None:
         summary = score_values(msg)
@@ -561,20 +560,18 @@ def measure_simulation(simulated_s: float, domain_id: int, log_folder: Path,
     result = {'simulated_s': simulated_s, 'profile': NOTHING_EXPORTED, 'realism': realism}
     try:
         deadline_s = time.monotonic() + PROCESS_GRACE_S
-        while not (listener.subscription.get_publisher_count() > 0
-                   and listener.pause_client.service_is_ready()):
+        while not (listener.subscription.get_publisher_count() > 0 and listener.pause.ready):
             if stop.is_set() or time.monotonic() > deadline_s or not simulator.running():
                 break
             executor.spin_once(timeout_sec=POLL_S)
-        start = AnsweredRequests(listener.pause_client)
-        start.ask(SetBool.Request(data=False))
+        listener.pause.ask_paused(False)
         deadline_s = time.monotonic() + simulated_s + PROCESS_GRACE_S
         while simulator.running() and not stop.is_set():
             if time.monotonic() > deadline_s:
                 result['error'] = 'the simulator did not finish in time'
                 break
             executor.spin_once(timeout_sec=POLL_S)
-            start.poll()
+            listener.pause.poll()
         # The last score is published as the run ends: take what is still on its way.
         end_s = time.monotonic() + LAST_SCORE_WAIT_S
         while time.monotonic() < end_s:

@@ -28,11 +28,10 @@ from followbot.package_files import share_file
 from followbot.recording import RecordingError
 from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim import soak
-from followbot_sim.answered_requests import AnsweredRequests
+from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.course_library import COURSES
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
-from followbot_sim.run_recording import (add_record_options, drain, HoldReport, PAUSE_SERVICE,
-                                         RunRecording)
+from followbot_sim.run_recording import add_record_options, drain, HoldReport, RunRecording
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.video import add_video_node, check_video_path, VideoHold, VideoPathError
@@ -43,7 +42,6 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Image
-from std_srvs.srv import SetBool
 
 STOP_GRACE_S = 5.0
 MONITOR_SPIN_S = 0.1
@@ -525,8 +523,7 @@ def main(argv=None) -> int:
     start_gate = None
     if recording is not None or video is not None:
         simulator_parameters['start_paused'] = 'true'
-        start_gate = AnsweredRequests(monitor.create_client(
-            SetBool, f'{simulator_name}/{PAUSE_SERVICE}'))
+        start_gate = SimulatorPause(monitor, simulator_name)
     simulator = ChildProcess('sim', _node_command(
         'followbot_sim.sim_node', node_arguments, simulator_parameters), environment)
     followers = [ChildProcess('follower' + (f' {name}' if name else ''), _node_command(
@@ -538,7 +535,6 @@ def main(argv=None) -> int:
     started_s = next_sample_s = time.monotonic()
     video_report = HoldReport('the video')
     video_hold = None if video is None else VideoHold(video)
-    gate_paused = None
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
@@ -562,9 +558,7 @@ def main(argv=None) -> int:
                     print(f'[followbot] {report}', flush=True)
             elif start_gate is not None:
                 # Started once connected; held while the video lags.
-                if video_lags != gate_paused:
-                    gate_paused = video_lags
-                    start_gate.ask(SetBool.Request(data=video_lags))
+                start_gate.ask_paused(video_lags)
                 start_gate.poll()
     finally:
         if simulator.process.poll() is not None:

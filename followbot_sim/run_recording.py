@@ -13,11 +13,10 @@ so its queues never overflow; held time is wall time only, simulated time stands
 
 import time
 
-from followbot_sim.answered_requests import AnsweredRequests
+from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.recorder import Recorder
 from followbot_sim.steady_condition import SteadyCondition
 from rclpy.parameter import Parameter
-from std_srvs.srv import SetBool
 
 CLOCK_TOPIC = '/clock'
 RAW_CAMERA_TOPIC = ('camera/rgb/image_raw', 'sensor_msgs/msg/Image')
@@ -36,7 +35,6 @@ RUN_TOPICS = (
 )
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 RECORDER_ODOMETRY_TOPIC = 'odom'
-PAUSE_SERVICE = 'pause'
 BYTES_PER_MEGABYTE = 1e6
 NANOSECONDS = 1e9
 # After a run, the recorder works through what it still holds until nothing has come for this
@@ -187,9 +185,7 @@ class RunRecording:
             path, run_topics(compressed, clock_topic), tf_odometry_topic=RECORDER_ODOMETRY_TOPIC,
             parameter_overrides=[Parameter('use_sim_time', value=True)], cli_args=remap,
             progress_topic=clock_topic, **kwargs)
-        self._pause_client = None if simulator_name is None else self.recorder.create_client(
-            SetBool, f'{simulator_name}/{PAUSE_SERVICE}')
-        self._pause_requests = AnsweredRequests(self._pause_client)
+        self._pause = SimulatorPause(self.recorder, simulator_name)
         # The recorder subscribes once it sees a publisher, so its side matches first.
         self._connected = SteadyCondition()
         self._lag_hold = LagHold()
@@ -214,17 +210,14 @@ class RunRecording:
             this object owns the simulator's pause while it records.
         :return: whether the simulator has been asked to start.
         """
-        self._pause_requests.poll()
+        self._pause.poll()
         if not self.started:
-            if self._connected.update(self.recorder.matched and (
-                    self._pause_client is None or self._pause_client.service_is_ready())):
-                self._set_paused(False)
+            if self._connected.update(self.recorder.matched and self._pause.ready):
+                self._pause.ask_paused(False)
                 self.started = True
             return self.started
-        holding = self.should_hold() or also_hold
-        if holding != self.holding:
-            self.holding = holding
-            self._set_paused(holding)
+        self.holding = self.should_hold() or also_hold
+        self._pause.ask_paused(self.holding)
         return True
 
     def hold_in(self, executor, simulator) -> None:
@@ -257,9 +250,6 @@ class RunRecording:
         :return: True from a lag of HOLD_LAG_S until it is back under RESUME_LAG_S.
         """
         return self._lag_hold.update(self.lag_s())
-
-    def _set_paused(self, paused: bool) -> None:
-        self._pause_requests.ask(SetBool.Request(data=paused))
 
     def wait_report(self) -> str | None:
         """

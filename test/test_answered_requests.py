@@ -1,7 +1,7 @@
 """Service requests sent again until answered, against real services over DDS."""
 
 from conftest import spin_until
-from followbot_sim.answered_requests import AnsweredRequests
+from followbot_sim.answered_requests import AnsweredRequests, SimulatorPause
 import pytest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -103,3 +103,37 @@ def test_without_a_service_to_ask_every_request_counts_as_answered():
     requests.ask(SetBool.Request(data=False))
     assert requests.poll()
     assert requests.response is None
+
+
+def test_the_simulator_pause_is_asked_once_per_change_and_again_until_answered(
+        ros_context, client_node):
+    node, executor = client_node
+    pause = SimulatorPause(node, '/followbot_sim', RETRY_S)
+    assert not pause.ready
+    pause.ask_paused(True)
+    pause.ask_paused(True)
+    assert pause.paused is True
+    server = PauseServer(ros_context)
+    executor.add_node(server.node)
+    try:
+        assert spin_until(executor, lambda: pause.ready and pause.poll())
+        assert server.received == [True]
+        # The same wish again is not a new request; a change is, once.
+        pause.ask_paused(True)
+        for _ in range(5):
+            executor.spin_once(timeout_sec=RETRY_S / 2)
+            pause.poll()
+        assert server.received == [True]
+        pause.ask_paused(False)
+        pause.ask_paused(False)
+        assert spin_until(executor, pause.poll)
+        assert server.received == [True, False]
+    finally:
+        server.node.destroy_node()
+
+
+def test_without_a_simulator_to_ask_the_pause_is_always_ready_and_answered():
+    pause = SimulatorPause(None, None)
+    assert pause.ready
+    pause.ask_paused(False)
+    assert pause.poll()
