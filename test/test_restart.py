@@ -101,6 +101,18 @@ class Run:
         self.executor.add_node(self.node)
         self.watcher = RobotWatcher(self.node)
 
+    def spin_until_driving_again(self) -> tuple:
+        """
+        Spin until the follower drives the robot with COMMANDS_AFTER_RESTART new commands.
+
+        :return: (whether it did in DISCOVERY_TIMEOUT_S, what was seen, for the assertion).
+        """
+        watcher = self.watcher
+        before = len(watcher.commands)
+        driving = spin_until(self.executor, lambda: watcher.driving() and len(watcher.commands)
+                             >= before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S)
+        return driving, f'speed {watcher.speed_mps()}, {len(watcher.commands) - before} commands'
+
     def close(self) -> None:
         """Kill the processes still running and destroy the watcher."""
         kill_leftovers(self.follower, self.simulator)
@@ -129,10 +141,8 @@ def test_a_killed_follower_stops_the_robot_and_a_new_one_drives_it_again(run):
     stopped_at = watcher.position()
     restart_index = len(watcher.ground_truth)
     run.follower = start_follower(run.environment)
-    commands_before = len(watcher.commands)
-    assert spin_until(executor, lambda: watcher.driving() and len(watcher.commands)
-                      >= commands_before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S), (
-        f'speed {watcher.speed_mps()}, {len(watcher.commands) - commands_before} commands')
+    driving, seen = run.spin_until_driving_again()
+    assert driving, seen
     assert run.simulator.poll() is None
     # The simulator kept its world: the robot drove on from where it had stopped.
     restarted_at = watcher.ground_truth[restart_index].pose.pose.position
@@ -154,11 +164,9 @@ def test_a_killed_simulator_stops_the_follower_and_a_new_one_brings_it_back(run)
                       and watcher.commands[-1] == Twist(), STOP_WITHIN_S), (
         watcher.commands[commands_before:])
     run.simulator = start_simulator(run.environment)
-    commands_before = len(watcher.commands)
     # A new world from its start, its clock from zero: the follower drives it all the same.
-    assert spin_until(executor, lambda: watcher.driving() and len(watcher.commands)
-                      >= commands_before + COMMANDS_AFTER_RESTART, DISCOVERY_TIMEOUT_S), (
-        f'speed {watcher.speed_mps()}, {len(watcher.commands) - commands_before} commands')
+    driving, seen = run.spin_until_driving_again()
+    assert driving, seen
     assert run.follower.poll() is None
     assert stop_process(run.follower) == 0
     assert stop_process(run.simulator) == 0
