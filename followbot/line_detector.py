@@ -19,8 +19,8 @@ pixels form stripes; which stripe, if any, is the line is decided with what the 
   smooth path: from one band to the next the line may turn, but not jump sideways by more than
   ``max_stripe_jump_m``, nor zigzag. Among all chains of stripes through the bands, the one
   with the most well-coloured, well-sized stripes and the smoothest path is taken (dynamic
-  programming over the bands). A stripe that stood in a band in the previous frame confidently
-  must be near where it was (``max_stripe_jump_m`` on the floor).
+  programming over the bands). A stripe that stood in a band in the previous frame's reported
+  line must be near where it was (``max_stripe_jump_m`` on the floor).
 - **How sure.** The detection's confidence is the share of the searchable bands that its
   chain covers, each weighed by how well its stripe's width and colour fit, lowered when
   another chain of similar strength competes. A lone yellow object, a half-matching stripe,
@@ -123,9 +123,8 @@ TURN_COST = 0.3
 GAP_COST = 0.05
 # Only this many of a band's best stripes take part in the chain search.
 MAX_CANDIDATES_PER_BAND = 5
-# A previous detection at least this confident fixes where each band's stripe may be: within
-# the jump limit of where it was, a stripe a whole limit away losing this share of its quality.
-TRACKING_CONFIDENCE = 0.5
+# A reported detection fixes where each band's stripe may be in the next frame: within the jump
+# limit of where it was, a stripe a whole limit away losing this share of its quality.
 TRACKING_WEIGHT = 0.5
 # A first look is accepted without the second when its confidence reaches this and each of
 # its stripes' quality reaches CLEAN_QUALITY.
@@ -1036,11 +1035,13 @@ class LineDetector:
                 bands.append(BandDetection(True, candidate.x_px, candidate.y_px,
                                            candidate.area_px, top, bottom, True,
                                            candidate.quality))
-        tracked = confidence >= TRACKING_CONFIDENCE
-        self._previous_points = [by_band[index].point if tracked and index in by_band
-                                 else None for index in range(len(self._bands))]
+        # Even a doubtful line the robot steers by is where the next frame looks first: two
+        # lines side by side (a hairpin's legs, the turn into it) are told apart by where
+        # the line was, not by a single frame.
+        self._previous_points = [by_band[index].point if index in by_band else None
+                                 for index in range(len(self._bands))]
         self._previous_heading = (_heading(chain[0].point, chain[1].point)
-                                  if tracked and len(chain) >= 2 else None)
+                                  if len(chain) >= 2 else None)
         return Detection(tuple(bands), width, height, confidence)
 
     def _band_pixels(self, image, channels):

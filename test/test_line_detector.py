@@ -505,6 +505,30 @@ def test_next_frame_follows_the_line_not_a_line_nearer_the_centre():
     assert detection.error == pytest.approx(expected_error(215))
 
 
+def test_a_doubtful_line_is_followed_into_the_next_frame_not_a_line_beside_it():
+    # Where the robot turns into a hairpin, its line and the hairpin's other leg run side by
+    # side 0.30 m apart; the line it drives is the one it saw, however doubtfully, a frame ago.
+    followed_m, beside_m = -0.17, 0.13
+    detector = LineDetector()
+    stub = detector.detect(scenes.scene([scenes.straight_line(followed_m, length_m=0.9)]),
+                           'bgr8', scenes.KINECT)
+    assert 0.1 <= stub.confidence < 0.5
+    both = scenes.scene([scenes.straight_line(followed_m), scenes.straight_line(beside_m)])
+    detection = detector.detect(both, 'bgr8', scenes.KINECT)
+    # On its own the frame shows the line nearer the middle: the other one.
+    alone = LineDetector().detect(both, 'bgr8', scenes.KINECT)
+    assert [band.centroid_x_px for band in alone.seen_bands] == pytest.approx(
+        [band.centroid_x_px for band in scenes_line_detection(beside_m).seen_bands], abs=2.0)
+    assert [band.centroid_x_px for band in detection.seen_bands] == pytest.approx(
+        [band.centroid_x_px for band in scenes_line_detection(followed_m).seen_bands], abs=2.0)
+
+
+def scenes_line_detection(lateral_m):
+    """Return the detection of a lone straight line at a lateral offset, by a new detector."""
+    return LineDetector().detect(scenes.scene([scenes.straight_line(lateral_m)]), 'bgr8',
+                                 scenes.KINECT)
+
+
 def test_line_jumping_farther_than_the_limit_is_rejected_then_found_again():
     # Without camera geometry a jump is measured as a share of the image width.
     jump_px = round(0.3 * WIDTH_PX)
