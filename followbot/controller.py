@@ -20,11 +20,17 @@ farthest band saw it ``turn_side_offset_m`` or more aside within ``turn_side_mem
 loss, path law), else the side last steered to. A line the robot saw end ahead of it (the
 bands beyond the farthest that saw it held no line-coloured pixel at all) is not searched for
 when it is lost: with ``stop_at_line_end`` the robot stops there, on the end of the line,
-until the line comes back into view; but a line that turned away to a side just before it
-ended may go on round a corner too sharp for the camera (a 120-degree corner leaves the view
-at its bottom edge), so the searching robot first turns up to ``corner_search_angle_deg``
-towards that side, then stops. A line found again is trusted after
-``frames_to_trust`` frames in a row. The robot never drives forward without a line.
+until the line comes back into view. It first drives on to where it saw the line end (path
+law): the camera sees the floor only from some way ahead, so the last frame that saw the line
+showed its end still that far off. It follows the line's floor points of that frame, kept
+where they lay on the floor by dead reckoning of its own commands, and stops
+``line_end_stop_short_m`` before their end. A line that turned away to a side just before it
+ended may go on round a corner too sharp for the camera (a hairpin whose turn leaves the view
+at its bottom edge, a 120-degree corner), so the searching robot first turns up to
+``corner_search_angle_deg`` towards that side (at ``corner_search_angular_speed_radps``:
+the corner was seen, so faster than a search for a line lost anywhere), then stops. A line
+found again is trusted after ``frames_to_trust`` frames in a row. The robot never drives
+forward without a line, but for coasting on the line memory or on to a line end it saw.
 
 Angular velocities follow ROS REP-103: positive is counter-clockwise, i.e. a left turn.
 """
@@ -182,13 +188,17 @@ class ControllerConfig:
     turn_side_offset_m: float = 0.1
     turn_side_memory_s: float = 1.5
     corner_search_angle_deg: float = 150.0
+    corner_search_angular_speed_radps: float = 3.0
+    line_end_stop_short_m: float = 0.1
 
     def __post_init__(self):
         """Reject negative or non-finite numbers and unknown laws and behaviours."""
         for name in ('linear_speed_mps', 'min_linear_speed_mps', 'angular_gain_radps',
                      'look_ahead_m', 'bearing_gain_radps', 'max_angular_speed_radps',
                      'line_memory_s', 'search_angular_speed_radps', 'turn_side_offset_m',
-                     'turn_side_memory_s', 'corner_search_angle_deg'):
+                     'turn_side_memory_s', 'corner_search_angle_deg',
+                     'corner_search_angular_speed_radps',
+                     'line_end_stop_short_m'):
             _check_number(name, getattr(self, name))
         for name in ('confidence_for_full_speed', 'max_lateral_acceleration_mps2',
                      'max_linear_acceleration_mps2',
@@ -239,6 +249,81 @@ def line_ends_in_view(detection):
         return False
     beyond = [band for band in bands[farthest_seen + 1:] if band.searched]
     return bool(beyond) and all(band.area_px == 0 for band in beyond)
+
+
+class RememberedRoute:
+    """
+    The floor points of the line last seen, kept where they lie as the robot moves on.
+
+    The robot's pose is dead-reckoned from the commands it was given (each held until the
+    next frame), in a frame fixed to the floor where the controller started; the points are
+    kept in that frame and given back in the robot's.
+    """
+
+    def __init__(self):
+        """Make a route with no points, the robot at the origin."""
+        self._pose = (0.0, 0.0, 0.0)
+        self._points = np.empty((0, 2))
+
+    def advance(self, command, dt_s):
+        """
+        Move the robot on by a command held for a while (an arc of a circle, or a line).
+
+        :param command: the VelocityCommand the robot drove.
+        :param dt_s: how long it drove it, in seconds.
+        """
+        x_m, y_m, yaw_rad = self._pose
+        distance_m = command.linear_mps * dt_s
+        turn_rad = command.angular_radps * dt_s
+        if abs(turn_rad) < 1e-9:
+            x_m += distance_m * math.cos(yaw_rad)
+            y_m += distance_m * math.sin(yaw_rad)
+        else:
+            radius_m = distance_m / turn_rad
+            x_m += radius_m * (math.sin(yaw_rad + turn_rad) - math.sin(yaw_rad))
+            y_m -= radius_m * (math.cos(yaw_rad + turn_rad) - math.cos(yaw_rad))
+        self._pose = (x_m, y_m, math.remainder(yaw_rad + turn_rad, math.tau))
+
+    def remember(self, floor_xy_m):
+        """
+        Keep these points as the route, in place of any before.
+
+        :param floor_xy_m: (n, 2) floor points in the robot's frame (x forward, y left), in
+            the order the line runs.
+        """
+        x_m, y_m, yaw_rad = self._pose
+        cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+        points = np.asarray(floor_xy_m, dtype=float).reshape(-1, 2)
+        self._points = np.stack((x_m + cos_yaw * points[:, 0] - sin_yaw * points[:, 1],
+                                 y_m + sin_yaw * points[:, 0] + cos_yaw * points[:, 1]), axis=1)
+
+    def forget(self):
+        """Drop the route's points."""
+        self._points = np.empty((0, 2))
+
+    def ahead(self, stop_short_m):
+        """
+        Return the route's points still ahead, in the robot's frame, nearest first.
+
+        Points the robot has come within ``stop_short_m`` of, or left behind it (in its own
+        frame), and those before them, are dropped for good. So is the whole route once its
+        end is within ``stop_short_m``.
+
+        :param stop_short_m: how close counts as there.
+        :return: an (n, 2) array, n >= 0.
+        """
+        x_m, y_m, yaw_rad = self._pose
+        cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+        dx_m, dy_m = self._points[:, 0] - x_m, self._points[:, 1] - y_m
+        local = np.stack((cos_yaw * dx_m + sin_yaw * dy_m, -sin_yaw * dx_m + cos_yaw * dy_m),
+                         axis=1)
+        passed = (np.hypot(local[:, 0], local[:, 1]) <= stop_short_m) | (local[:, 0] <= 0.0)
+        if len(local) and passed[-1]:
+            self.forget()
+            return self._points
+        keep = np.flatnonzero(passed)[-1] + 1 if passed.any() else 0
+        self._points = self._points[keep:]
+        return local[keep:]
 
 
 class LineFollowingController:
@@ -302,6 +387,7 @@ class LineFollowingController:
         self._time_s = None
         self._command = self.stop_command()
         self._path_estimate = None
+        self._route = RememberedRoute()
 
     def update(self, detection, time_s, floor_xy_m=None):
         """
@@ -322,8 +408,10 @@ class LineFollowingController:
                 else _clamp(time_s - self._time_s, 0.0, MAX_TIME_STEP_S))
         if self._time_s is not None and time_s < self._time_s:
             # Time went backwards (a restarted simulation, a looped bag): what was seen
-            # before is not recent.
+            # before is not recent, nor where it was.
             self._last_seen_s = -math.inf
+            self._route.forget()
+        self._route.advance(self._command, dt_s)
         self._time_s = time_s
         target = None
         if detection.found and (config.steering_law == 'proportional'
@@ -338,6 +426,8 @@ class LineFollowingController:
                 self._state = STATE_TRACKING
                 self._last_seen_s = time_s
                 self._end_in_view = line_ends_in_view(detection)
+                if config.steering_law == 'path':
+                    self._route.remember(floor_xy_m)
                 self._last_side = _sign(target.angular_radps) or self._last_side
                 self._remember_turn_side(floor_xy_m, time_s)
                 self._corner_search_turned_rad = 0.0
@@ -345,7 +435,15 @@ class LineFollowingController:
                 self._state = STATE_ACQUIRING
         else:
             self._seen_streak = 0
-            if (self._state in (STATE_TRACKING, STATE_COASTING)
+            following = self._state in (STATE_TRACKING, STATE_COASTING)
+            to_end = (following and config.stop_at_line_end and self._end_in_view
+                      and config.steering_law == 'path')
+            route = self._route.ahead(config.line_end_stop_short_m) if to_end else ()
+            if len(route):
+                # Seen ending ahead: on to where it ends, on the points seen last.
+                self._state = STATE_COASTING
+                target = self._path_target(route, 1.0, route_end=True)
+            elif (following and not to_end
                     and time_s - self._last_seen_s <= config.line_memory_s):
                 self._state = STATE_COASTING
                 target = self._command
@@ -368,7 +466,7 @@ class LineFollowingController:
         return VelocityCommand(config.linear_speed_mps,
                                -config.angular_gain_radps * detection.error)
 
-    def _path_target(self, floor_xy_m, confidence):
+    def _path_target(self, floor_xy_m, confidence, route_end=False):
         config = self._config
         estimate = estimate_path(floor_xy_m, config.look_ahead_m)
         self._path_estimate = estimate
@@ -376,6 +474,13 @@ class LineFollowingController:
         # Full speed while enough of the bands see the line; slower as fewer do.
         speed_mps = config.linear_speed_mps * min(
             1.0, confidence / config.confidence_for_full_speed)
+        if route_end:
+            # No faster than when the line was last seen, and slow enough to stop at the
+            # route's end within the acceleration limit.
+            remaining_m = max(float(np.hypot(*floor_xy_m[-1])) - config.line_end_stop_short_m,
+                              0.0)
+            speed_mps = min(speed_mps, self._command.linear_mps, math.sqrt(
+                2.0 * config.max_linear_acceleration_mps2 * remaining_m))
         bend_per_m = max(abs(estimate.sharpest_curvature_per_m), abs(steering_per_m))
         if bend_per_m > 0.0:
             speed_mps = min(speed_mps,
@@ -417,7 +522,7 @@ class LineFollowingController:
             # The line that ended right after turning away to a side may go on round a corner
             # sharper than the camera can see: look there once before standing still.
             self._corner_search_turned_rad += abs(self._command.angular_radps) * dt_s
-            return VelocityCommand(0.0, turn_side * config.search_angular_speed_radps)
+            return VelocityCommand(0.0, turn_side * config.corner_search_angular_speed_radps)
         if (config.lost_line_behaviour == 'stop'
                 or self._state in (STATE_WAITING, STATE_LINE_END)):
             return self.stop_command()

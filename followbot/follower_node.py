@@ -137,6 +137,12 @@ CONTROLLER_PARAMETERS = {
                                 'after the line turned away to a side (a corner sharper than '
                                 'the camera sees), turn in place up to this far toward that '
                                 'side looking for the line before stopping; 0 stops at once.'),
+    'corner_search_angular_speed_radps': (0.0, 10.0, 'Yaw rate of that turn round a corner '
+                                          'seen.'),
+    'line_end_stop_short_m': (0.0, 5.0, 'Path law, with stop_at_line_end: where the robot saw '
+                              'the line end ahead, it drives on along the line last seen (by '
+                              'dead reckoning of its commands) and stops this far short of '
+                              'its end, before stopping or searching there.'),
 }
 # Where the camera is on the robot: the path law needs it to put image points on the floor.
 # The defaults are the simulated TurtleBot 2's Kinect (followbot_sim's camera_pitch_deg).

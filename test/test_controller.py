@@ -20,6 +20,7 @@ from followbot.controller import LOST_LINE_BEHAVIOURS
 from followbot.controller import MAX_TIME_STEP_S
 from followbot.controller import PathEstimate
 from followbot.controller import pursuit_curvature
+from followbot.controller import RememberedRoute
 from followbot.controller import STEERING_LAWS
 from followbot.controller import VelocityCommand
 from followbot.line_detector import BandDetection
@@ -767,7 +768,10 @@ def test_a_frame_without_the_line_before_any_sighting_is_lost():
 
 
 def test_states_are_reported_by_name_through_a_whole_run():
-    controller = LineFollowingController(unlimited_config(frames_to_trust=2, line_memory_s=0.12))
+    # The line seen ending 0.85 m ahead is driven to, 0.035 m a frame, until 0.8 m short of
+    # it: two frames.
+    controller = LineFollowingController(unlimited_config(
+        frames_to_trust=2, line_memory_s=0.12, line_end_stop_short_m=0.8))
     frames = (
         ('waiting', Detection.nothing_seen()), ('acquiring', seen()), ('tracking', seen()),
         ('coasting', nothing_seen()), ('coasting', nothing_seen()), ('tracking', seen()),
@@ -939,11 +943,17 @@ def test_never_drives_forward_while_the_line_is_lost(steering_law, lost_line_beh
         time_s += 20 * FRAME_PERIOD_S
         frames = drive(controller, nothing_seen(), None, 20, start_s=time_s)
         time_s += 20 * FRAME_PERIOD_S
-        # Coasting through the 0.18 s memory, then lost (or stopped at the end of a line seen
-        # ending), never forward again.
-        after_memory = 'line end' if line_ends_in_view(detection) else 'lost'
-        assert [frame.state for frame in frames] == ['coasting'] * 3 + [after_memory] * 17
-        assert all(frame.command.linear_mps == 0.0 for frame in frames[3:])
+        # Coasting through the 0.18 s memory, then lost; or, where the line was seen ending,
+        # on to its end and stopped there. Never forward again.
+        coasting = coasting_frames(frames)
+        if line_ends_in_view(detection):
+            assert coasting_distance_m(frames) <= (
+                math.hypot(*floor_xy_m[-1]) - config.line_end_stop_short_m)
+            assert {frame.state for frame in frames[coasting:]} == {'line end'}
+        else:
+            assert coasting == 3
+            assert {frame.state for frame in frames[coasting:]} == {'lost'}
+        assert all(frame.command.linear_mps == 0.0 for frame in frames[coasting:])
 
 
 # reset() and the config setter.
@@ -1034,6 +1044,18 @@ def points_turning_away(side, near_offset_m=0.0):
     return points
 
 
+def coasting_frames(frames):
+    """Return how many frames, from the first, the controller coasted."""
+    states = [frame.state for frame in frames] + [None]
+    return states.index(next(state for state in states if state != 'coasting'))
+
+
+def coasting_distance_m(frames):
+    """Return how far the commands of the first frames, while coasting, drove the robot."""
+    return sum(frame.command.linear_mps for frame in frames[:coasting_frames(frames)]) * (
+        FRAME_PERIOD_S)
+
+
 def approach_the_end(controller, time_s):
     """Show a controller the end of a straight line coming into view, then no line."""
     for seen_count in range(BAND_COUNT - 1, 0, -1):
@@ -1061,9 +1083,17 @@ def test_stops_without_turning_at_a_line_it_saw_end(
                           STRAIGHT_AHEAD_M[:seen_count])
     frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
                    start_s=time_s + FRAME_PERIOD_S)
-    # It coasts through the line memory, then stands still at the end: a zero command.
-    assert [frame.state for frame in frames[:2]] == ['coasting'] * 2
-    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end') for frame in frames[2:])
+    # It coasts (path law: on to the end it saw 0.35 m ahead, less the distance it stops
+    # short; proportional: through the line memory), then stands still at the end.
+    coasting = coasting_frames(frames)
+    if steering_law == 'path':
+        assert coasting_distance_m(frames) == pytest.approx(
+            BAND_DISTANCES_M[0] - config.line_end_stop_short_m,
+            abs=config.linear_speed_mps * FRAME_PERIOD_S)
+    else:
+        assert coasting == 2
+    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end')
+               for frame in frames[coasting:])
 
 
 @pytest.mark.parametrize('side', (LEFT, RIGHT))
@@ -1071,13 +1101,14 @@ def test_looks_round_a_sharp_corner_then_stops_at_the_line_end(side):
     config = ControllerConfig(line_memory_s=0.1)
     controller, time_s = tracking_controller(config, seen(), points_turning_away(side))
     frames = approach_the_end(controller, time_s)
-    looking = [frame for frame in frames if frame.command != VelocityCommand(0.0, 0.0)][2:]
+    looking = [frame for frame in frames[coasting_frames(frames):]
+               if frame.command != VelocityCommand(0.0, 0.0)]
     # In place, toward the side the line turned away to, about as far as told; then still.
     assert all(frame.state == 'line end' and frame.command.linear_mps == 0.0
                and frame.command.angular_radps * side > 0.0 for frame in looking)
     turned_rad = sum(abs(frame.command.angular_radps) for frame in looking) * FRAME_PERIOD_S
     # Give or take a frame or two at the search speed and the slowing down to a stop.
-    speed_radps = config.search_angular_speed_radps
+    speed_radps = config.corner_search_angular_speed_radps
     assert turned_rad == pytest.approx(
         math.radians(config.corner_search_angle_deg),
         abs=speed_radps * (2 * FRAME_PERIOD_S
@@ -1089,7 +1120,8 @@ def test_stops_at_once_at_a_line_end_when_told_not_to_search():
     config = ControllerConfig(line_memory_s=0.1, lost_line_behaviour='stop')
     controller, time_s = tracking_controller(config, seen(), points_turning_away(LEFT))
     frames = approach_the_end(controller, time_s)
-    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end') for frame in frames[2:])
+    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end')
+               for frame in frames[coasting_frames(frames):])
 
 
 def test_a_turn_seen_long_before_the_end_is_not_looked_round():
@@ -1098,7 +1130,8 @@ def test_a_turn_seen_long_before_the_end_is_not_looked_round():
     later_s = time_s + config.turn_side_memory_s + 1.0
     drive(controller, seen(), STRAIGHT_AHEAD_M, SETTLING_FRAMES, start_s=later_s)
     frames = approach_the_end(controller, later_s + SETTLING_FRAMES * FRAME_PERIOD_S)
-    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end') for frame in frames[2:])
+    assert all(frame == Frame(VelocityCommand(0.0, 0.0), 'line end')
+               for frame in frames[coasting_frames(frames):])
 
 
 def test_searches_toward_the_side_the_line_turned_away_to():
@@ -1125,9 +1158,9 @@ def test_follows_the_line_again_when_it_comes_back_after_a_line_end():
     config = unlimited_config(line_memory_s=0.0)
     controller, time_s = tracking_controller(config)
     controller.update(seen(seen_count=1), time_s + FRAME_PERIOD_S, STRAIGHT_AHEAD_M[:1])
-    drive(controller, nothing_seen(), None, 5, start_s=time_s + 2 * FRAME_PERIOD_S)
+    drive(controller, nothing_seen(), None, SETTLING_FRAMES, start_s=time_s + 2 * FRAME_PERIOD_S)
     assert controller.state == 'line end'
-    frames = drive(controller, seen(), STRAIGHT_AHEAD_M, 3, start_s=time_s + 1.0)
+    frames = drive(controller, seen(), STRAIGHT_AHEAD_M, 3, start_s=time_s + 4.0)
     assert [frame.state for frame in frames] == ['acquiring', 'tracking', 'tracking']
     assert frames[-1].command.linear_mps > 0.0
 
@@ -1135,3 +1168,96 @@ def test_follows_the_line_again_when_it_comes_back_after_a_line_end():
 def test_stop_at_line_end_must_be_a_boolean():
     with pytest.raises(TypeError, match='stop_at_line_end'):
         ControllerConfig(stop_at_line_end=1)
+
+
+# The route to a line end seen ahead: dead reckoning of the robot's own commands.
+
+def test_a_remembered_point_ahead_comes_nearer_as_the_robot_drives_straight_on():
+    route = RememberedRoute()
+    route.remember([(1.0, 0.2)])
+    route.advance(VelocityCommand(0.5, 0.0), 1.2)
+    np.testing.assert_allclose(route.ahead(0.0), [(0.4, 0.2)], atol=1e-12)
+
+
+@pytest.mark.parametrize('steps', (1, 7))
+def test_driving_a_quarter_circle_brings_the_robot_to_its_end_facing_left(steps):
+    # A quarter circle of 0.5 m radius to the left ends 0.5 m ahead and 0.5 m left, heading
+    # left: the point 1 m further left is then 1 m straight ahead.
+    route = RememberedRoute()
+    route.remember([(0.5, 0.5), (0.5, 1.5)])
+    for _ in range(steps):
+        route.advance(VelocityCommand(0.5 * 1.0, 1.0), (math.pi / 2.0) / steps)
+    np.testing.assert_allclose(route.ahead(1e-9), [(1.0, 0.0)], atol=1e-12)
+
+
+def test_points_reached_or_left_behind_are_dropped_and_the_end_reached_forgets_all():
+    route = RememberedRoute()
+    route.remember([(0.2, 0.0), (0.4, 0.0), (0.6, 0.1)])
+    route.advance(VelocityCommand(1.0, 0.0), 0.35)
+    np.testing.assert_allclose(route.ahead(0.1), [(0.25, 0.1)], atol=1e-12)
+    # Backing up does not bring the dropped points back.
+    route.advance(VelocityCommand(-1.0, 0.0), 0.35)
+    np.testing.assert_allclose(route.ahead(0.1), [(0.6, 0.1)], atol=1e-12)
+    route.advance(VelocityCommand(1.0, 0.0), 0.6)
+    assert len(route.ahead(0.1)) == 0
+    route.advance(VelocityCommand(-1.0, 0.0), 0.6)
+    assert len(route.ahead(0.1)) == 0
+
+
+def hairpin_half_points(side, radius_m=0.15, start_m=0.35):
+    """Return floor points of a line straight ahead turning back on a small circle, to its top."""
+    angles_rad = np.linspace(0.0, math.pi / 2.0, 4)
+    return np.stack((start_m + radius_m * np.sin(angles_rad),
+                     side * radius_m * (1.0 - np.cos(angles_rad))), axis=1)
+
+
+@pytest.mark.parametrize('side', (LEFT, RIGHT))
+def test_drives_round_a_hairpin_it_saw_end_to_its_top_then_looks_round_it(side):
+    # The turn of a hairpin leaves the view at its bottom edge: the last frame that saw the
+    # line showed it from 0.35 m ahead, turning to a side and ending at the hairpin's top.
+    config = ControllerConfig()
+    points = hairpin_half_points(side)
+    controller, time_s = tracking_controller(config, seen(), STRAIGHT_AHEAD_M)
+    sighting = controller.update(seen(seen_count=len(points)), time_s + FRAME_PERIOD_S, points)
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + 2 * FRAME_PERIOD_S)
+    coasting = coasting_frames(frames)
+    # Turning toward the hairpin's side all the way there.
+    assert coasting > 5
+    assert all(frame.command.linear_mps > 0.0 and frame.command.angular_radps * side > 0.0
+               for frame in frames[1:coasting])
+    # Where the commands took the robot from the sighting (each held for a frame): within the
+    # distance it stops short of the top, give or take a frame's travel.
+    x_m, y_m, yaw_rad = 0.0, 0.0, 0.0
+    for command in [sighting] + [frame.command for frame in frames[:coasting]]:
+        for _ in range(100):
+            step_s = FRAME_PERIOD_S / 100
+            x_m += command.linear_mps * math.cos(yaw_rad) * step_s
+            y_m += command.linear_mps * math.sin(yaw_rad) * step_s
+            yaw_rad += command.angular_radps * step_s
+    distance_to_top_m = math.dist((x_m, y_m), points[-1])
+    assert distance_to_top_m == pytest.approx(
+        config.line_end_stop_short_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
+    # Then in place toward that side, looking for the way back.
+    assert all(frame.state == 'line end' and frame.command.linear_mps == 0.0
+               for frame in frames[coasting:])
+    assert any(frame.command.angular_radps * side > 0.0 for frame in frames[coasting:])
+
+
+def test_a_route_is_forgotten_when_time_goes_back():
+    config = ControllerConfig()
+    controller, time_s = tracking_controller(config, seen(), STRAIGHT_AHEAD_M)
+    controller.update(seen(seen_count=2), time_s + FRAME_PERIOD_S, STRAIGHT_AHEAD_M[:2])
+    # A restarted simulation or a looped bag: what was seen is not where the robot now is.
+    frames = drive(controller, nothing_seen(), None, 3, start_s=0.0)
+    assert all(frame.command.linear_mps == 0.0 for frame in frames)
+
+
+def test_the_proportional_law_coasts_on_its_last_command_at_a_line_end():
+    # It has no floor points, so no route: the line memory, then the stop.
+    config = ControllerConfig(steering_law='proportional', line_memory_s=0.12)
+    controller, time_s = tracking_controller(config, seen(0.2), None)
+    controller.update(seen(0.2, seen_count=1), time_s + FRAME_PERIOD_S)
+    frames = drive(controller, nothing_seen(), None, 10, start_s=time_s + 2 * FRAME_PERIOD_S)
+    assert coasting_frames(frames) == 2
+    assert {frame.state for frame in frames[2:]} == {'line end'}

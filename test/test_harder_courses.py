@@ -10,7 +10,6 @@ wheels) getting farther from the centre line than half the 0.19 m line width plu
 from followbot.controller import ControllerConfig
 from followbot_sim.course import make_course
 from followbot_sim.scorecard import END_LAP, END_LINE_END, run_scenario, Scenario
-import pytest
 
 # Room for a lap at the default cruising speed, slower in bends, before the test gives up.
 LAP_TIME_MARGIN = 1.6
@@ -59,8 +58,6 @@ def test_follower_stops_at_the_end_of_a_line(ros_context):
     assert summary['max_distance_from_line_m'] <= course.line_width_m / 2.0, summary
 
 
-@pytest.mark.xfail(strict=True, reason='issue 14: the default follower cannot yet take '
-                   'hairpins of 0.15 m radius whose legs run 0.30 m apart')
 def test_follower_laps_hairpins(ros_context):
     assert_stayed_on_the_line(lap(ros_context, 'hairpins'))
 
