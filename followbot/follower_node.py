@@ -127,7 +127,8 @@ CONTROLLER_PARAMETERS = {
                             + ' or '.join(LOST_LINE_BEHAVIOURS)
                             + " ('search' turns toward the side it was last seen)."),
     'stop_at_line_end': ('Stop (zero Twist) instead of searching when the line is lost '
-                         'after the robot saw it end ahead, bare floor beyond it.'),
+                         'after the robot saw it end ahead, bare floor beyond it (path law: '
+                         'once there, see line_end_stop_short_m).'),
     'turn_side_offset_m': (0.0, 5.0, 'Path law: the farthest band seeing the line at '
                            'least this far to a side means the line turns away to that side, '
                            'where a lost line is searched for first.'),

@@ -535,6 +535,9 @@ def main(argv=None) -> int:
     started_s = next_sample_s = time.monotonic()
     video_report = HoldReport('the video')
     video_hold = None if video is None else VideoHold(video)
+    # The video gates the start only: at the end of the run the simulator's publishers go
+    # before its process ends, and that is no reason to wait.
+    video_connected = video is None
     try:
         while not interrupted.is_set() and all(c.process.poll() is None for c in children):
             executor.spin_once(timeout_sec=MONITOR_SPIN_S)
@@ -542,10 +545,12 @@ def main(argv=None) -> int:
                 next_sample_s += options.soak_period
                 soak_samples.append(_soak_sample(
                     time.monotonic() - started_s, children, monitor.summaries))
-            if video is not None and not video.ready:
-                if report := video_report.line(lambda: ', '.join(video.waiting_for())):
-                    print(f'[followbot] {report}', flush=True)
-                continue
+            if not video_connected:
+                if not video.ready:
+                    if report := video_report.line(lambda: ', '.join(video.waiting_for())):
+                        print(f'[followbot] {report}', flush=True)
+                    continue
+                video_connected = True
             video_lags = video_hold is not None and video_hold.update()
             if video_hold is not None and (report := video_hold.report()):
                 print(f'[followbot] {report}', flush=True)
