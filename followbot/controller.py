@@ -20,7 +20,8 @@ farthest band saw it ``turn_side_offset_m`` or more aside within ``turn_side_mem
 loss, path law), else the side last steered to. A line the robot saw end ahead of it (the
 bands beyond the farthest that saw it held no line-coloured pixel at all) is not searched for
 when it is lost: with ``stop_at_line_end`` the robot stops there, on the end of the line,
-until the line comes back into view. It first drives on to where it saw the line end (path
+until the line comes back into view. Where the line ended inside the view (not at the image's
+side, where it may go on out of view), the robot first drives on to where it saw the end (path
 law): the camera sees the floor only from some way ahead, so the last frame that saw the line
 showed its end still that far off. It follows the line's floor points of that frame, kept
 where they lay on the floor by dead reckoning of its own commands, and stops
@@ -384,6 +385,7 @@ class LineFollowingController:
         self._seen_streak = 0
         self._last_seen_s = -math.inf
         self._end_in_view = False
+        self._end_ahead = False
         self._time_s = None
         self._command = self.stop_command()
         self._path_estimate = None
@@ -426,6 +428,9 @@ class LineFollowingController:
                 self._state = STATE_TRACKING
                 self._last_seen_s = time_s
                 self._end_in_view = line_ends_in_view(detection)
+                # Its end is where it was seen to end only when that is inside the view, not
+                # where it left at the image's side (a square corner seen from before it).
+                self._end_ahead = self._end_in_view and not detection.seen_bands[-1].at_side
                 if config.steering_law == 'path':
                     self._route.remember(floor_xy_m)
                 self._last_side = _sign(target.angular_radps) or self._last_side
@@ -436,7 +441,7 @@ class LineFollowingController:
         else:
             self._seen_streak = 0
             following = self._state in (STATE_TRACKING, STATE_COASTING)
-            to_end = (following and config.stop_at_line_end and self._end_in_view
+            to_end = (following and config.stop_at_line_end and self._end_ahead
                       and config.steering_law == 'path')
             route = self._route.ahead(config.line_end_stop_short_m) if to_end else ()
             if len(route):

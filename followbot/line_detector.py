@@ -263,8 +263,9 @@ class BandDetection(NamedTuple):
     NaN when the band did not see the line. ``area_px`` counts the chosen stripe's pixels
     (or, when nothing was found, all matching pixels of the band). ``searched`` is False for a
     band at or above the horizon, where no line can be. ``quality`` (0-1) says how well the
-    stripe's width and colour fit the line's. An immutable record like a frozen dataclass,
-    made six times a frame at a seventh of the cost.
+    stripe's width and colour fit the line's. ``at_side`` is True when the stripe reaches the
+    image's left or right edge: the line may go on out of the view there. An immutable record
+    like a frozen dataclass, made six times a frame at a seventh of the cost.
     """
 
     found: bool
@@ -275,6 +276,7 @@ class BandDetection(NamedTuple):
     bottom_px: int
     searched: bool = True
     quality: float = 0.0
+    at_side: bool = False
 
 
 @dataclass(frozen=True)
@@ -1006,7 +1008,7 @@ class LineDetector:
             last = point
             points.append(point)
             records.append(BandDetection(True, x_px, top + y_moment / area, area, top, bottom,
-                                         True, quality))
+                                         True, quality, start == 0 or end == width))
             total_quality += quality
         if first is None:
             return None
@@ -1034,7 +1036,7 @@ class LineDetector:
             else:
                 bands.append(BandDetection(True, candidate.x_px, candidate.y_px,
                                            candidate.area_px, top, bottom, True,
-                                           candidate.quality))
+                                           candidate.quality, candidate.at_side))
         # Even a doubtful line the robot steers by is where the next frame looks first: two
         # lines side by side (a hairpin's legs, the turn into it) are told apart by where
         # the line was, not by a single frame.

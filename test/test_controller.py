@@ -8,6 +8,7 @@ it uses limits so high that one frame reaches any command.
 """
 
 from collections import namedtuple
+import dataclasses
 from dataclasses import fields
 import math
 
@@ -1261,3 +1262,23 @@ def test_the_proportional_law_coasts_on_its_last_command_at_a_line_end():
     frames = drive(controller, nothing_seen(), None, 10, start_s=time_s + 2 * FRAME_PERIOD_S)
     assert coasting_frames(frames) == 2
     assert {frame.state for frame in frames[2:]} == {'line end'}
+
+
+@pytest.mark.parametrize('side', (LEFT, RIGHT))
+def test_a_line_leaving_the_view_at_its_side_is_not_driven_to_but_looked_round(side):
+    # A square corner seen from before it: the nearest band sees the new leg at the image's
+    # edge and nothing beyond. Where it leaves the view is not where it ends: the robot coasts
+    # on its last command (the turn it was making), then turns in place toward it.
+    config = ControllerConfig(line_memory_s=0.12)
+    controller, time_s = tracking_controller(config, seen(), points_turning_away(side))
+    leaving = seen(-side * 0.95, seen_count=1)
+    leaving = dataclasses.replace(leaving, bands=(
+        leaving.bands[0]._replace(at_side=True), *leaving.bands[1:]))
+    controller.update(leaving, time_s + FRAME_PERIOD_S, ray_points(side * 0.4, (0.4,)))
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + 2 * FRAME_PERIOD_S)
+    assert coasting_frames(frames) == 2
+    assert all(frame.command == frames[0].command for frame in frames[:2])
+    assert {frame.state for frame in frames[2:]} == {'line end'}
+    assert all(frame.command.linear_mps == 0.0 for frame in frames[2:])
+    assert any(frame.command.angular_radps * side > 0.0 for frame in frames[2:])
