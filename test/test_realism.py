@@ -9,6 +9,7 @@ import dataclasses
 import math
 
 from followbot_sim.appearance import floor_pattern
+from followbot_sim.camera_model import CameraModel
 from followbot_sim.camera_model import plumb_bob_distort
 from followbot_sim.camera_model import radial_undistortion_factor
 from followbot_sim.course import make_course
@@ -68,6 +69,35 @@ def test_warm_light_is_red_and_daylight_is_near_white():
     red, green, blue = kelvin_to_rgb(2700.0)
     assert red == 1.0 and blue < green < 0.75
     np.testing.assert_allclose(kelvin_to_rgb(6500.0), 1.0, atol=0.05)
+
+
+@pytest.mark.parametrize('yaw_rate_radps', (0.3, 0.5, 3.0))
+def test_motion_blur_smears_an_edge_without_brightening_the_frame(yaw_rate_radps):
+    # The blur alone: no lens, vignetting, white balance, exposure control, noise or JPEG.
+    realism = dataclasses.replace(
+        realise('lab', 1), white_balance_error=None, auto_exposure=False, vignetting=0.0,
+        radial_distortion_k1=0.0, exposure_time_s=0.01, read_noise_levels=0.0,
+        shot_noise_gain=0.0, jpeg_quality=0)
+    focal_px = 320.0 / math.tan(math.radians(30.0))
+    model = CameraModel(realism, (focal_px, focal_px, 319.5, 239.5), (640, 480))
+    image = np.full((480, 640, 3), 40, np.uint8)
+    image[:, 320:] = 201
+    assert np.array_equal(model.process(image.copy(), 0, 0.0, 0.0), image)
+    blurred = model.process(image.copy(), 1, 0.0, yaw_rate_radps).copy()
+    # A turn smears across: the edge's columns take rising levels between the two sides, as
+    # many as the smear is wide (the rate times the exposure, in pixels), and each side keeps
+    # its own level away from the edge. The mean moves only as far as an even smear shifts
+    # the edge (half a pixel) and each smeared pixel rounds (half a level): no pixel is
+    # rounded up by more.
+    smear_px = max(1, round(yaw_rate_radps * realism.exposure_time_s * focal_px))
+    row = blurred[240, :, 0].astype(int)
+    between = np.flatnonzero((row > 40) & (row < 201))
+    assert len(between) == smear_px - 1
+    assert (np.diff(row[between]) > 0).all()
+    assert (row[:300] == 40).all() and (row[340:] == 201).all()
+    half_pixel_shift = 0.5 * (smear_px % 2 == 0) * (201 - 40) / 640
+    rounding = 0.5 * (smear_px - 1) / 640
+    assert abs(blurred.mean() - image.mean()) <= half_pixel_shift + rounding + 1e-9
 
 
 def test_radial_undistortion_inverts_plumb_bob():
