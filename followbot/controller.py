@@ -258,12 +258,16 @@ class RememberedRoute:
 
     The robot's pose is dead-reckoned from the commands it was given (each held until the
     next frame), in a frame fixed to the floor where the controller started; the points are
-    kept in that frame and given back in the robot's.
+    kept in that frame and given back in the robot's. A sighting is put on the floor only
+    when the route is asked for: every frame that sees the line replaces it, and few are
+    ever driven.
     """
 
     def __init__(self):
         """Make a route with no points, the robot at the origin."""
         self._pose = (0.0, 0.0, 0.0)
+        # The last sighting as (pose, points in the robot's frame), until put on the floor.
+        self._sighting = None
         self._points = np.empty((0, 2))
 
     def advance(self, command, dt_s):
@@ -292,15 +296,23 @@ class RememberedRoute:
         :param floor_xy_m: (n, 2) floor points in the robot's frame (x forward, y left), in
             the order the line runs.
         """
-        x_m, y_m, yaw_rad = self._pose
-        cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
-        points = np.asarray(floor_xy_m, dtype=float).reshape(-1, 2)
-        self._points = np.stack((x_m + cos_yaw * points[:, 0] - sin_yaw * points[:, 1],
-                                 y_m + sin_yaw * points[:, 0] + cos_yaw * points[:, 1]), axis=1)
+        self._sighting = (self._pose, np.array(floor_xy_m, dtype=float).reshape(-1, 2))
 
     def forget(self):
         """Drop the route's points."""
+        self._sighting = None
         self._points = np.empty((0, 2))
+
+    def _floor_points(self):
+        """Return the route's points in the floor frame, putting a new sighting there first."""
+        if self._sighting is not None:
+            (x_m, y_m, yaw_rad), points = self._sighting
+            cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+            self._points = np.stack(
+                (x_m + cos_yaw * points[:, 0] - sin_yaw * points[:, 1],
+                 y_m + sin_yaw * points[:, 0] + cos_yaw * points[:, 1]), axis=1)
+            self._sighting = None
+        return self._points
 
     def ahead(self, stop_short_m):
         """
@@ -313,9 +325,10 @@ class RememberedRoute:
         :param stop_short_m: how close counts as there.
         :return: an (n, 2) array, n >= 0.
         """
+        points = self._floor_points()
         x_m, y_m, yaw_rad = self._pose
         cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
-        dx_m, dy_m = self._points[:, 0] - x_m, self._points[:, 1] - y_m
+        dx_m, dy_m = points[:, 0] - x_m, points[:, 1] - y_m
         local = np.stack((cos_yaw * dx_m + sin_yaw * dy_m, -sin_yaw * dx_m + cos_yaw * dy_m),
                          axis=1)
         passed = (np.hypot(local[:, 0], local[:, 1]) <= stop_short_m) | (local[:, 0] <= 0.0)
@@ -323,7 +336,7 @@ class RememberedRoute:
             self.forget()
             return self._points
         keep = np.flatnonzero(passed)[-1] + 1 if passed.any() else 0
-        self._points = self._points[keep:]
+        self._points = points[keep:]
         return local[keep:]
 
 
