@@ -66,8 +66,9 @@ def drain(executor, progress) -> None:
     while now_s < deadline_s and now_s - last_change_s < DRAIN_QUIET_S:
         executor.spin_once(timeout_sec=DRAIN_SPIN_S)
         now_s = time.monotonic()
-        if progress() != last:
-            last, last_change_s = progress(), now_s
+        value = progress()
+        if value != last:
+            last, last_change_s = value, now_s
 
 
 def run_topics(compressed: bool = False, clock_topic: str = CLOCK_TOPIC) -> list:
