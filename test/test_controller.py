@@ -1047,8 +1047,8 @@ def points_turning_away(side, near_offset_m=0.0):
 
 def coasting_frames(frames):
     """Return how many frames, from the first, the controller coasted."""
-    states = [frame.state for frame in frames] + [None]
-    return states.index(next(state for state in states if state != 'coasting'))
+    return next((index for index, frame in enumerate(frames) if frame.state != 'coasting'),
+                len(frames))
 
 
 def coasting_distance_m(frames):
