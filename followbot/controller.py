@@ -13,25 +13,28 @@ Two steering laws, chosen by ``ControllerConfig.steering_law``:
 - ``'proportional'``: the book's law ("Programming Robots with ROS", ch. 12): a constant speed
   and w = -gain * error of the nearest band's normalised offset.
 
-With either law, a line lost for a moment (a gap in a dashed line) is driven through on the
-last command for ``line_memory_s``; a line lost for longer makes the robot stop, or rotate
-in place towards the side where it was last seen: the side the line turned away to (the
-farthest band saw it ``turn_side_offset_m`` or more aside within ``turn_side_memory_s`` of the
-loss, path law), else the side last steered to. A line the robot saw end ahead of it (the
-bands beyond the farthest that saw it held no line-coloured pixel at all) is not searched for
-when it is lost: with ``stop_at_line_end`` the robot stops there, on the end of the line,
-until the line comes back into view. Where the line ended inside the view (not at the image's
-side, where it may go on out of view), the robot first drives on to where it saw the end (path
-law): the camera sees the floor only from some way ahead, so the last frame that saw the line
-showed its end still that far off. It follows the line's floor points of that frame, kept
-where they lay on the floor by dead reckoning of its own commands, and stops
+With either law, a line lost for a moment (a gap in a dashed line) is driven through on the last
+command for ``line_memory_s``; a line lost for longer makes the robot stop, or rotate in place
+towards the side where it was last seen. Searching (``lost_line_behaviour`` ``'search'``) with
+the path law, a line that vanished from every band at once where it was last seen running on out
+of the top of the view (glare, worn paint) is first driven along as far as it was seen, like a
+line end seen ahead (below), and searched for from there. The side searched first is the side
+the line turned away to (the farthest band saw it ``turn_side_offset_m`` or more aside within
+``turn_side_memory_s`` of the loss, path law), else the side last steered to. A line the robot
+saw end ahead of it (the bands beyond the farthest that saw it held no line-coloured pixel at
+all) is not searched for when it is lost: with ``stop_at_line_end`` the robot stops there, on
+the end of the line, until the line comes back into view. Where the line ended inside the view
+(not at the image's side, where it may go on out of view), the robot first drives on to where it
+saw the end (path law): the camera sees the floor only from some way ahead, so the last frame
+that saw the line showed its end still that far off. It follows the line's floor points of that
+frame, kept where they lay on the floor by dead reckoning of its own commands, and stops
 ``line_end_stop_short_m`` before their end. A line that turned away to a side just before it
-ended may go on round a corner too sharp for the camera (a hairpin whose turn leaves the view
-at its bottom edge, a 120-degree corner), so the searching robot first turns up to
-``corner_search_angle_deg`` towards that side (at ``corner_search_angular_speed_radps``:
-the corner was seen, so faster than a search for a line lost anywhere), then stops. A line
-found again is trusted after ``frames_to_trust`` frames in a row. The robot never drives
-forward without a line, but for coasting on the line memory or on to a line end it saw.
+ended may go on round a corner too sharp for the camera (a hairpin whose turn leaves the view at
+its bottom edge, a 120-degree corner), so the searching robot first turns up to
+``corner_search_angle_deg`` towards that side (at ``corner_search_angular_speed_radps``: the
+corner was seen, so faster than a search for a line lost anywhere), then stops. A line found
+again is trusted after ``frames_to_trust`` frames in a row. The robot never drives forward
+without a line, but for coasting on the line memory or along the line it last saw.
 
 Angular velocities follow ROS REP-103: positive is counter-clockwise, i.e. a left turn.
 """
@@ -399,6 +402,7 @@ class LineFollowingController:
         self._last_seen_s = -math.inf
         self._end_in_view = False
         self._end_ahead = False
+        self._runs_on_ahead = False
         self._time_s = None
         self._command = self.stop_command()
         self._path_estimate = None
@@ -443,7 +447,11 @@ class LineFollowingController:
                 self._end_in_view = line_ends_in_view(detection)
                 # Its end is where it was seen to end only when that is inside the view, not
                 # where it left at the image's side (a square corner seen from before it).
-                self._end_ahead = self._end_in_view and not detection.seen_bands[-1].at_side
+                left_at_side = detection.seen_bands[-1].at_side
+                self._end_ahead = self._end_in_view and not left_at_side
+                # Seen running on out of the top of the view: a line that then vanishes at
+                # once (glare, worn paint) is still where it was seen.
+                self._runs_on_ahead = not self._end_in_view and not left_at_side
                 if config.steering_law == 'path':
                     self._route.remember(floor_xy_m)
                 self._last_side = _sign(target.angular_radps) or self._last_side
@@ -456,9 +464,13 @@ class LineFollowingController:
             following = self._state in (STATE_TRACKING, STATE_COASTING)
             to_end = (following and config.stop_at_line_end and self._end_ahead
                       and config.steering_law == 'path')
-            route = self._route.ahead(config.line_end_stop_short_m) if to_end else ()
+            along_sighting = to_end or (following and self._runs_on_ahead
+                                        and config.lost_line_behaviour == 'search'
+                                        and config.steering_law == 'path')
+            route = (self._route.ahead(config.line_end_stop_short_m) if along_sighting
+                     else ())
             if len(route):
-                # Seen ending ahead: on to where it ends, on the points seen last.
+                # Seen ending ahead, or running on: on along the points seen last.
                 self._state = STATE_COASTING
                 target = self._path_target(route, 1.0, route_end=True)
             elif (following and not to_end

@@ -125,7 +125,9 @@ CONTROLLER_PARAMETERS = {
     'search_angular_speed_radps': (0.0, 10.0, 'Yaw rate while searching for a lost line.'),
     'lost_line_behaviour': ('What to do when the line is lost: '
                             + ' or '.join(LOST_LINE_BEHAVIOURS)
-                            + " ('search' turns toward the side it was last seen)."),
+                            + " ('search' turns toward the side it was last seen; path law: "
+                            'a line that vanished where it was seen running on out of view '
+                            'is first driven along as far as it was seen).'),
     'stop_at_line_end': ('Stop (zero Twist) instead of searching when the line is lost '
                          'after the robot saw it end ahead, bare floor beyond it (path law: '
                          'once there, see line_end_stop_short_m).'),

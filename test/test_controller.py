@@ -626,7 +626,8 @@ def test_path_law_treats_an_empty_floor_array_as_no_line():
 
 
 def test_path_law_keeps_the_path_estimate_of_the_last_frame():
-    config = unlimited_config(frames_to_trust=1)
+    # Told to stop when the line is lost, it coasts on the last command, not along the line.
+    config = unlimited_config(frames_to_trust=1, lost_line_behaviour='stop')
     controller = LineFollowingController(config)
     points = circle_points(1.0, RIGHT)
     drive(controller, seen(), points, 2)
@@ -791,12 +792,13 @@ def test_states_are_reported_by_name_through_a_whole_run():
 
 # Line memory and the lost line.
 
-@pytest.mark.parametrize('steering_law, detection, floor_xy_m', (
-    ('path', seen(), circle_points(1.0, LEFT)),
-    ('path', seen(), circle_points(0.6, RIGHT)),
-    ('proportional', seen(0.3), None),
+@pytest.mark.parametrize('steering_law, detection, floor_xy_m, lost_line_behaviour', (
+    # Searching, the path law drives on along a line seen running on out of view (below).
+    ('path', seen(), circle_points(1.0, LEFT), 'stop'),
+    ('path', seen(), circle_points(0.6, RIGHT), 'stop'),
+    ('proportional', seen(0.3), None, 'search'),
+    ('proportional', seen(0.3), None, 'stop'),
 ))
-@pytest.mark.parametrize('lost_line_behaviour', LOST_LINE_BEHAVIOURS)
 def test_a_gap_shorter_than_the_line_memory_is_coasted_on_the_last_command(
         steering_law, detection, floor_xy_m, lost_line_behaviour):
     config = ControllerConfig(steering_law=steering_law, line_memory_s=0.3,
@@ -814,7 +816,8 @@ def test_a_gap_shorter_than_the_line_memory_is_coasted_on_the_last_command(
     ('proportional', seen(0.3), None),
 ))
 def test_a_gap_longer_than_the_line_memory_loses_the_line(steering_law, detection, floor_xy_m):
-    config = ControllerConfig(steering_law=steering_law, line_memory_s=0.3)
+    config = ControllerConfig(steering_law=steering_law, line_memory_s=0.3,
+                              lost_line_behaviour='stop')
     controller, time_s = tracking_controller(config, detection, floor_xy_m)
     frames = drive(controller, nothing_seen(), None, 10, start_s=time_s + FRAME_PERIOD_S)
     # 0.3 s of memory: misses 0.05 s to 0.25 s after the last sighting coast, from 0.35 s on
@@ -826,7 +829,8 @@ def test_a_gap_longer_than_the_line_memory_loses_the_line(steering_law, detectio
 
 
 def test_a_zero_line_memory_loses_the_line_at_the_first_miss():
-    controller, time_s = tracking_controller(ControllerConfig(line_memory_s=0.0))
+    controller, time_s = tracking_controller(ControllerConfig(line_memory_s=0.0,
+                                                              lost_line_behaviour='stop'))
     assert controller.update(nothing_seen(), time_s + FRAME_PERIOD_S).linear_mps == 0.0
     assert controller.state == 'lost'
 
@@ -851,7 +855,7 @@ def test_the_line_found_while_coasting_is_trusted_at_once():
 
 
 def test_the_line_found_after_it_was_lost_must_be_trusted_again():
-    config = unlimited_config(frames_to_trust=2, line_memory_s=0.0)
+    config = unlimited_config(frames_to_trust=2, line_memory_s=0.0, lost_line_behaviour='stop')
     controller, time_s = tracking_controller(config)
     controller.update(nothing_seen(), time_s + FRAME_PERIOD_S)
     command = controller.update(seen(), time_s + 2 * FRAME_PERIOD_S, STRAIGHT_AHEAD_M)
@@ -875,7 +879,12 @@ def test_search_turns_in_place_towards_the_side_of_the_last_steering(
                               lost_line_behaviour='search', search_angular_speed_radps=1.25,
                               stop_at_line_end=False)
     controller, time_s = tracking_controller(config, detection, floor_xy_m)
-    for frame in drive(controller, nothing_seen(), None, 5, start_s=time_s + FRAME_PERIOD_S):
+    # A line seen running on out of view (the path law's circles) is driven along first.
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + FRAME_PERIOD_S)
+    searching = frames[coasting_frames(frames):]
+    assert len(searching) >= 5
+    for frame in searching:
         assert frame == Frame(VelocityCommand(0.0, pytest.approx(side * 1.25)), 'lost')
 
 
@@ -884,8 +893,13 @@ def test_search_remembers_the_side_through_straight_steering():
     controller, time_s = tracking_controller(config, floor_xy_m=circle_points(1.0, RIGHT))
     drive(controller, seen(), STRAIGHT_AHEAD_M, 5, start_s=time_s + FRAME_PERIOD_S)
     assert controller.last_command.angular_radps == 0.0
-    command = controller.update(nothing_seen(), time_s + 6 * FRAME_PERIOD_S)
-    assert command.angular_radps == pytest.approx(-config.search_angular_speed_radps)
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + 6 * FRAME_PERIOD_S)
+    # On along the straight line it saw, then the search.
+    assert all(frame.command.angular_radps == pytest.approx(0.0, abs=TOLERANCE)
+               for frame in frames[:coasting_frames(frames)])
+    assert frames[-1] == Frame(
+        VelocityCommand(0.0, pytest.approx(-config.search_angular_speed_radps)), 'lost')
 
 
 @pytest.mark.parametrize('steering_law', STEERING_LAWS)
@@ -900,8 +914,11 @@ def test_search_turns_left_when_the_line_was_never_steered_to_a_side(steering_la
 def test_search_keeps_its_direction_while_the_line_is_being_trusted_again():
     config = unlimited_config(frames_to_trust=3, line_memory_s=0.0)
     controller, time_s = tracking_controller(config, floor_xy_m=circle_points(1.0, RIGHT))
-    controller.update(nothing_seen(), time_s + FRAME_PERIOD_S)
-    frames = drive(controller, seen(), STRAIGHT_AHEAD_M, 2, start_s=time_s + 2 * FRAME_PERIOD_S)
+    misses = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + FRAME_PERIOD_S)
+    assert misses[-1].state == 'lost'
+    time_s += (SETTLING_FRAMES + 1) * FRAME_PERIOD_S
+    frames = drive(controller, seen(), STRAIGHT_AHEAD_M, 2, start_s=time_s)
     for frame in frames:
         assert frame == Frame(
             VelocityCommand(0.0, pytest.approx(-config.search_angular_speed_radps)), 'acquiring')
@@ -939,18 +956,22 @@ def test_never_drives_forward_while_the_line_is_lost(steering_law, lost_line_beh
     time_s = 0.0
     sightings = ((seen(0.5), circle_points(0.8, RIGHT)), (seen(-0.5), circle_points(0.8, LEFT)),
                  (seen(), STRAIGHT_AHEAD_M), (seen(0.1, 2), ray_points(-0.1, (0.4, 0.5))))
+    along_the_line = steering_law == 'path' and lost_line_behaviour == 'search'
     for detection, floor_xy_m in sightings:
         drive(controller, detection, floor_xy_m, 20, start_s=time_s)
         time_s += 20 * FRAME_PERIOD_S
-        frames = drive(controller, nothing_seen(), None, 20, start_s=time_s)
-        time_s += 20 * FRAME_PERIOD_S
+        frames = drive(controller, nothing_seen(), None, 40, start_s=time_s)
+        time_s += 40 * FRAME_PERIOD_S
         # Coasting through the 0.18 s memory, then lost; or, where the line was seen ending,
-        # on to its end and stopped there. Never forward again.
+        # on to its end and stopped there; or, searching, on along the line seen running on
+        # out of view, then lost. Never forward again.
         coasting = coasting_frames(frames)
-        if line_ends_in_view(detection):
+        ends = line_ends_in_view(detection)
+        if ends or along_the_line:
             assert coasting_distance_m(frames) <= (
-                math.hypot(*floor_xy_m[-1]) - config.line_end_stop_short_m)
-            assert {frame.state for frame in frames[coasting:]} == {'line end'}
+                polyline_length_m(floor_xy_m) - config.line_end_stop_short_m)
+            assert {frame.state for frame in frames[coasting:]} == {
+                'line end' if ends else 'lost'}
         else:
             assert coasting == 3
             assert {frame.state for frame in frames[coasting:]} == {'lost'}
@@ -1051,6 +1072,12 @@ def coasting_frames(frames):
                 len(frames))
 
 
+def polyline_length_m(floor_xy_m):
+    """Return the length of the line from the robot through floor points, nearest first."""
+    points = np.vstack(((0.0, 0.0), floor_xy_m))
+    return float(np.hypot(*np.diff(points, axis=0).T).sum())
+
+
 def coasting_distance_m(frames):
     """Return how far the commands of the first frames, while coasting, drove the robot."""
     return sum(frame.command.linear_mps for frame in frames[:coasting_frames(frames)]) * (
@@ -1142,7 +1169,8 @@ def test_searches_toward_the_side_the_line_turned_away_to():
     controller, time_s = tracking_controller(config, seen(),
                                              points_turning_away(LEFT, near_offset_m=-0.05))
     assert controller.last_command.angular_radps < 0.0
-    frames = drive(controller, nothing_seen(), None, 3, start_s=time_s + FRAME_PERIOD_S)
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + FRAME_PERIOD_S)
     assert frames[-1] == Frame(VelocityCommand(0.0, config.search_angular_speed_radps), 'lost')
 
 
@@ -1205,6 +1233,25 @@ def test_points_reached_or_left_behind_are_dropped_and_the_end_reached_forgets_a
     assert len(route.ahead(0.1)) == 0
 
 
+def place_after(commands):
+    """
+    Return where commands, each held for a frame, take the robot, in its frame at the start.
+
+    Integrated in small steps, independently of the controller's exact arcs.
+
+    :param commands: the VelocityCommands, in order.
+    :return: (x forward, y left) in metres.
+    """
+    x_m, y_m, yaw_rad = 0.0, 0.0, 0.0
+    step_s = FRAME_PERIOD_S / 100
+    for command in commands:
+        for _ in range(100):
+            x_m += command.linear_mps * math.cos(yaw_rad) * step_s
+            y_m += command.linear_mps * math.sin(yaw_rad) * step_s
+            yaw_rad += command.angular_radps * step_s
+    return x_m, y_m
+
+
 def hairpin_half_points(side, radius_m=0.15, start_m=0.35):
     """Return floor points of a line straight ahead turning back on a small circle, to its top."""
     angles_rad = np.linspace(0.0, math.pi / 2.0, 4)
@@ -1229,20 +1276,40 @@ def test_drives_round_a_hairpin_it_saw_end_to_its_top_then_looks_round_it(side):
                for frame in frames[1:coasting])
     # Where the commands took the robot from the sighting (each held for a frame): within the
     # distance it stops short of the top, give or take a frame's travel.
-    x_m, y_m, yaw_rad = 0.0, 0.0, 0.0
-    for command in [sighting] + [frame.command for frame in frames[:coasting]]:
-        for _ in range(100):
-            step_s = FRAME_PERIOD_S / 100
-            x_m += command.linear_mps * math.cos(yaw_rad) * step_s
-            y_m += command.linear_mps * math.sin(yaw_rad) * step_s
-            yaw_rad += command.angular_radps * step_s
-    distance_to_top_m = math.dist((x_m, y_m), points[-1])
+    distance_to_top_m = math.dist(
+        place_after([sighting] + [frame.command for frame in frames[:coasting]]), points[-1])
     assert distance_to_top_m == pytest.approx(
         config.line_end_stop_short_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
     # Then in place toward that side, looking for the way back.
     assert all(frame.state == 'line end' and frame.command.linear_mps == 0.0
                for frame in frames[coasting:])
     assert any(frame.command.angular_radps * side > 0.0 for frame in frames[coasting:])
+
+
+@pytest.mark.parametrize('side', (LEFT, RIGHT))
+def test_a_line_that_vanished_where_it_ran_on_out_of_view_is_driven_along_then_searched(side):
+    # Glare or worn paint hides the whole line at once: it was seen running on out of the top
+    # of the view, on a bend, so it is where it was seen. Searching, the robot drives on along
+    # it, well past the line memory, to the farthest point it saw, and searches there.
+    config = ControllerConfig(line_memory_s=0.3)
+    points = circle_points(1.0, side)
+    controller, time_s = tracking_controller(config, seen(), points)
+    sighting = controller.last_command
+    frames = drive(controller, nothing_seen(), None, SETTLING_FRAMES,
+                   start_s=time_s + FRAME_PERIOD_S)
+    coasting = coasting_frames(frames)
+    assert coasting > 2 * round(config.line_memory_s / FRAME_PERIOD_S)
+    assert all(frame.command.linear_mps > 0.0 and frame.command.angular_radps * side > 0.0
+               for frame in frames[:coasting])
+    distance_to_end_m = math.dist(
+        place_after([sighting] + [frame.command for frame in frames[:coasting]]), points[-1])
+    assert distance_to_end_m == pytest.approx(
+        config.line_end_stop_short_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
+    # Then the search, toward the side the line bent to.
+    assert all(frame.state == 'lost' and frame.command.linear_mps == 0.0
+               for frame in frames[coasting:])
+    assert frames[-1].command.angular_radps == pytest.approx(
+        side * config.search_angular_speed_radps)
 
 
 def test_a_route_is_forgotten_when_time_goes_back():

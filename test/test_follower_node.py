@@ -106,7 +106,9 @@ def test_waits_for_camera_info_before_using_the_path_law(ros_context):
 
 def test_searches_toward_the_side_last_seen_without_driving(harness):
     harness.send_many(WIDTH_PX // 2 + 200)
-    for _ in range(10):  # past the line memory
+    # The line ran on out of the view: on along where it was seen (3 s is well past that, and
+    # past the line memory), then the search, in place.
+    for _ in range(60):
         command = harness.send(camera_frame(None))
     assert command.linear.x == 0.0
     assert command.angular.z < 0.0
