@@ -88,7 +88,8 @@ DETECTOR_PARAMETERS = {
     'line_width_m': (0.005, 2.0, 'Width of the line on the floor: with the camera geometry '
                      'it tells how wide the line must look in each band.'),
     'min_confidence': (0.0, 1.0, 'A detection less confident than this (0-1) reports no line: '
-                       'the robot coasts through line_memory_s, then stops or searches.'),
+                       'the robot coasts (line_memory_s, or along the line last seen; see '
+                       'lost_line_behaviour), then stops or searches.'),
     'max_stripe_jump_m': (0.005, 5.0, "Farthest, on the floor, a band's stripe may lie "
                           'sideways from where the line leads, or from where the band saw '
                           'it in the previous frame.'),
