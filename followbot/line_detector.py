@@ -10,6 +10,8 @@ pixels form stripes; which stripe, if any, is the line is decided with what the 
   ``line_width_m`` must look a known number of pixels wide; a stripe far wider or narrower (a
   whole floor passing a colour bound under a cast, a speck of noise) is not the line. A
   diagonal stripe is measured across its slope, so a line running across the view still fits.
+  Stripes a hairline apart (``SPLIT_GAP_M`` on the floor, at most ``SPLIT_GAP_SHARE`` of the
+  line's width) are one line split lengthwise: two strips of tape, a scratch, a highlight.
 - **What colour the line is, relative to its floor.** A first, fast look applies the colour
   preset's fixed HSV bounds exactly (see :mod:`followbot.colour_rule`). When that leaves any
   doubt (a band below the horizon with no stripe, several stripes, a stripe of the wrong width)
@@ -155,6 +157,14 @@ CENTRE_PREFERENCE = 0.05
 FEW_POINTS = 16
 # A rival chain as strong as the chosen one takes this share of the confidence.
 RIVAL_WEIGHT = 0.8
+# Stripes of one line split lengthwise by a hairline (the seam of a line laid as two strips of
+# tape, a scratch or a highlight along it) are one stripe: joined across a gap as wide as this
+# on the floor, but at most SPLIT_GAP_SHARE of the line's width (a narrow tape's halves are
+# not two lines' worth apart), and at least MIN_SPLIT_GAP_PX (the camera blurs a hairline
+# over a few pixels), or MIN_SPLIT_GAP_PX where the width is not known.
+SPLIT_GAP_M = 0.01
+SPLIT_GAP_SHARE = 0.25
+MIN_SPLIT_GAP_PX = 3.0
 # How much a band that cannot see a line which left the view at the image's side counts
 # against it: not fully (it cannot see it), not nothing (the robot turns blind there; on
 # realistic frames full trust had the robot enter corners faster and lose the line after them).
@@ -406,6 +416,8 @@ class _BandPlan:
     expected_width_px: tuple
     across_rows_px: tuple
     min_area_px: tuple
+    # The widest gap across a band's stripe that still leaves it one stripe (pixels).
+    split_gap_px: tuple
     # Where a stripe at column x of a band stands, to within its few rows: (forward[band],
     # left_per_px[band] * (x - centre_px)) on the floor, or in the image without geometry;
     # None for a camera with lens distortion, whose points are projected one by one.
@@ -665,6 +677,7 @@ class LineDetector:
             plan = _BandPlan(searched=(True,) * count, expected_width_px=(None,) * count,
                              across_rows_px=(None,) * count,
                              min_area_px=(config.min_area_px,) * count,
+                             split_gap_px=(MIN_SPLIT_GAP_PX,) * count,
                              forward=tuple((height - (top + bottom - 1) / 2.0) / width
                                            for top, bottom in self._bands),
                              left_per_px=(-1.0 / width,) * count, centre_px=width / 2.0,
@@ -681,6 +694,8 @@ class LineDetector:
                 min_area_px=tuple(max(config.min_area_px,
                                       int(MIN_AREA_SHARE * value * rows))
                                   for value, rows in zip(widths, heights)),
+                split_gap_px=tuple(max(MIN_SPLIT_GAP_PX, value * min(
+                    SPLIT_GAP_SHARE, SPLIT_GAP_M / config.line_width_m)) for value in widths),
                 forward=tuple(geometry.floor_point(geometry.cx_px, centre)[0]
                               for centre in centres),
                 left_per_px=tuple(geometry.floor_point(geometry.cx_px + 1.0, centre)[1]
@@ -729,6 +744,8 @@ class LineDetector:
             rows = rows_of[index]
             if isinstance(stripes, np.ndarray):
                 stripes = [tuple(column) for column in stripes.T.tolist()]
+            if len(stripes) > 1:
+                stripes = _joined(stripes, plan.split_gap_px[index])
             for start, end, area, x_moment, y_moment in stripes:
                 if area < plan.min_area_px[index]:
                     continue
@@ -1191,6 +1208,27 @@ class LineDetector:
                 stripes_by_band[index].append(
                     (first_column, end - start + first_column, area, x_moment, y_moment))
         return stripes_by_band
+
+
+def _joined(stripes, max_gap_px):
+    """
+    Return a band's stripes, left to right, with those at most ``max_gap_px`` apart joined.
+
+    :param stripes: (first column, end column, pixels, sum of their columns, sum of their
+        rows) tuples, left to right.
+    :param max_gap_px: the widest gap of bare columns a line's stripe may have.
+    :return: the stripes, as tuples of the same form.
+    """
+    joined = [stripes[0]]
+    for stripe in stripes[1:]:
+        start, end, area, x_moment, y_moment = stripe
+        first, last_end, last_area, last_x_moment, last_y_moment = joined[-1]
+        if start - last_end <= max_gap_px:
+            joined[-1] = (first, end, last_area + area, last_x_moment + x_moment,
+                          last_y_moment + y_moment)
+        else:
+            joined.append(stripe)
+    return joined
 
 
 def _heading(near, far):

@@ -523,6 +523,44 @@ def test_a_doubtful_line_is_followed_into_the_next_frame_not_a_line_beside_it():
         [band.centroid_x_px for band in scenes_line_detection(followed_m).seen_bands], abs=2.0)
 
 
+TWO_STRIP_TAPE_M = 0.05
+BLACK_BGR = (30, 30, 30)
+
+
+def two_strips_scene(seam_m, tape_m=TWO_STRIP_TAPE_M):
+    """Return a black line laid straight ahead as two strips of tape a seam apart."""
+    strip_m = (tape_m - seam_m) / 2.0
+    offset_m = (strip_m + seam_m) / 2.0
+    return scenes.add_noise(scenes.scene(
+        [scenes.straight_line(-offset_m), scenes.straight_line(offset_m)], width_m=strip_m,
+        line_bgr=BLACK_BGR), 4.0)
+
+
+@pytest.mark.parametrize('seam_m', (0.002, 0.005))
+def test_a_line_of_two_strips_of_tape_is_one_line_not_two(seam_m):
+    # A wide line laid as two strips, or one with a scratch or a highlight along it: the seam
+    # splits its stripe in every band, and the halves are not two rival lines.
+    config = DetectorConfig(line_colour='black', line_width_m=TWO_STRIP_TAPE_M)
+    whole = LineDetector(config).detect(two_strips_scene(0.0), 'bgr8', scenes.KINECT)
+    split = LineDetector(config).detect(two_strips_scene(seam_m), 'bgr8', scenes.KINECT)
+    assert whole.confidence > 0.99
+    assert split.confidence > 0.9
+    assert centroids_px(split) == pytest.approx(centroids_px(whole), abs=1.0)
+
+
+def test_two_tapes_a_hand_apart_stay_two_lines():
+    config = DetectorConfig(line_colour='black', line_width_m=TWO_STRIP_TAPE_M)
+    image = scenes.add_noise(scenes.scene(
+        [scenes.straight_line(-0.06), scenes.straight_line(0.06)], width_m=TWO_STRIP_TAPE_M,
+        line_bgr=BLACK_BGR), 4.0)
+    detection = LineDetector(config).detect(image, 'bgr8', scenes.KINECT)
+    middle = LineDetector(config).detect(two_strips_scene(0.0), 'bgr8', scenes.KINECT)
+    # Not joined into one line between them: one of the two.
+    assert detection.found
+    assert all(abs(x_px - centre_px) > 20.0 for x_px, centre_px in
+               zip(centroids_px(detection), centroids_px(middle)))
+
+
 def scenes_line_detection(lateral_m):
     """Return the detection of a lone straight line at a lateral offset, by a new detector."""
     return LineDetector().detect(scenes.scene([scenes.straight_line(lateral_m)]), 'bgr8',
