@@ -1252,6 +1252,23 @@ def place_after(commands):
     return x_m, y_m
 
 
+def assert_driven_to_short_of(end_m, sighting, frames, config):
+    """
+    Assert that a sighting's command and the coasting after it took the robot near a point.
+
+    Where the commands took the robot from the sighting (each held for a frame) must be the
+    distance it stops short of the point, give or take a frame's travel.
+
+    :param end_m: the (x forward, y left) point in the robot's frame at the sighting.
+    :param sighting: the command answering the sighting.
+    :param frames: the frames after it, coasting first.
+    :param config: the ControllerConfig.
+    """
+    commands = [sighting] + [frame.command for frame in frames[:coasting_frames(frames)]]
+    assert math.dist(place_after(commands), end_m) == pytest.approx(
+        config.line_end_stop_short_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
+
+
 def hairpin_half_points(side, radius_m=0.15, start_m=0.35):
     """Return floor points of a line straight ahead turning back on a small circle, to its top."""
     angles_rad = np.linspace(0.0, math.pi / 2.0, 4)
@@ -1274,12 +1291,7 @@ def test_drives_round_a_hairpin_it_saw_end_to_its_top_then_looks_round_it(side):
     assert coasting > 5
     assert all(frame.command.linear_mps > 0.0 and frame.command.angular_radps * side > 0.0
                for frame in frames[1:coasting])
-    # Where the commands took the robot from the sighting (each held for a frame): within the
-    # distance it stops short of the top, give or take a frame's travel.
-    distance_to_top_m = math.dist(
-        place_after([sighting] + [frame.command for frame in frames[:coasting]]), points[-1])
-    assert distance_to_top_m == pytest.approx(
-        config.line_end_stop_short_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
+    assert_driven_to_short_of(points[-1], sighting, frames, config)
     # Then in place toward that side, looking for the way back.
     assert all(frame.state == 'line end' and frame.command.linear_mps == 0.0
                for frame in frames[coasting:])
@@ -1301,10 +1313,7 @@ def test_a_line_that_vanished_where_it_ran_on_out_of_view_is_driven_along_then_s
     assert coasting > 2 * round(config.line_memory_s / FRAME_PERIOD_S)
     assert all(frame.command.linear_mps > 0.0 and frame.command.angular_radps * side > 0.0
                for frame in frames[:coasting])
-    distance_to_end_m = math.dist(
-        place_after([sighting] + [frame.command for frame in frames[:coasting]]), points[-1])
-    assert distance_to_end_m == pytest.approx(
-        config.line_end_stop_short_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
+    assert_driven_to_short_of(points[-1], sighting, frames, config)
     # Then the search, toward the side the line bent to.
     assert all(frame.state == 'lost' and frame.command.linear_mps == 0.0
                for frame in frames[coasting:])
