@@ -48,8 +48,11 @@ MONITOR_SPIN_S = 0.1
 REPORT_TOLERANCE_S = 1e-3
 CLOCK_TOPIC = '/clock'
 # How long the launcher looks for another simulator's clock before starting its own nodes: the
-# time DDS discovery takes to show a running participant on this machine.
-CLOCK_DISCOVERY_S = 2.0
+# time DDS discovery takes to show a running participant on this machine. A new participant
+# learns of one that is already running from its periodic announcement (Fast DDS: every 3 s),
+# so a running simulator's /clock showed 2.1-3.3 s after a probe started (12 tries, quiet
+# 2-core machine); 2 s missed it, and two simulators then shared one clock.
+CLOCK_DISCOVERY_S = 4.5
 DEBUG_IMAGE_TOPIC = 'follower/debug_image'
 OVERVIEW_IMAGE_TOPIC = 'overview/image'
 CAMERA_PICTURE = 'camera_debug.png'
