@@ -401,8 +401,7 @@ class LineFollowingController:
         self._seen_streak = 0
         self._last_seen_s = -math.inf
         self._end_in_view = False
-        self._end_ahead = False
-        self._runs_on_ahead = False
+        self._left_at_side = False
         self._time_s = None
         self._command = self.stop_command()
         self._path_estimate = None
@@ -445,13 +444,7 @@ class LineFollowingController:
                 self._state = STATE_TRACKING
                 self._last_seen_s = time_s
                 self._end_in_view = line_ends_in_view(detection)
-                # Its end is where it was seen to end only when that is inside the view, not
-                # where it left at the image's side (a square corner seen from before it).
-                left_at_side = detection.seen_bands[-1].at_side
-                self._end_ahead = self._end_in_view and not left_at_side
-                # Seen running on out of the top of the view: a line that then vanishes at
-                # once (glare, worn paint) is still where it was seen.
-                self._runs_on_ahead = not self._end_in_view and not left_at_side
+                self._left_at_side = detection.seen_bands[-1].at_side
                 if config.steering_law == 'path':
                     self._route.remember(floor_xy_m)
                 self._last_side = _sign(target.angular_radps) or self._last_side
@@ -462,12 +455,15 @@ class LineFollowingController:
         else:
             self._seen_streak = 0
             following = self._state in (STATE_TRACKING, STATE_COASTING)
-            to_end = (following and config.stop_at_line_end and self._end_ahead
-                      and config.steering_law == 'path')
-            along_sighting = to_end or (following and self._runs_on_ahead
-                                        and config.lost_line_behaviour == 'search'
-                                        and config.steering_law == 'path')
-            route = (self._route.ahead(config.line_end_stop_short_m) if along_sighting
+            # The line is where it was last seen unless it left at the image's side (a square
+            # corner seen from before it): it ended there inside the view, or ran on out of
+            # the view's top and then vanished at once (glare, worn paint).
+            on_route = (following and config.steering_law == 'path'
+                        and not self._left_at_side)
+            to_end = on_route and config.stop_at_line_end and self._end_in_view
+            runs_on = (on_route and not self._end_in_view
+                       and config.lost_line_behaviour == 'search')
+            route = (self._route.ahead(config.line_end_stop_short_m) if to_end or runs_on
                      else ())
             if len(route):
                 # Seen ending ahead, or running on: on along the points seen last.
