@@ -255,13 +255,66 @@ def line_ends_in_view(detection):
     return bool(beyond) and all(band.area_px == 0 for band in beyond)
 
 
+def arc_pose(pose, linear_mps, angular_radps, dt_s):
+    """
+    Return where a planar pose ends after driving a twist for a while (an arc, or a line).
+
+    :param pose: ``(x_m, y_m, yaw_rad)`` at the start.
+    :param linear_mps: forward speed, held.
+    :param angular_radps: yaw rate, held.
+    :param dt_s: how long, in seconds (negative goes back along the same arc).
+    :return: ``(x_m, y_m, yaw_rad)``, yaw in [-pi, pi].
+    """
+    x_m, y_m, yaw_rad = pose
+    distance_m = linear_mps * dt_s
+    turn_rad = angular_radps * dt_s
+    if abs(turn_rad) < 1e-9:
+        x_m += distance_m * math.cos(yaw_rad)
+        y_m += distance_m * math.sin(yaw_rad)
+    else:
+        radius_m = distance_m / turn_rad
+        x_m += radius_m * (math.sin(yaw_rad + turn_rad) - math.sin(yaw_rad))
+        y_m -= radius_m * (math.cos(yaw_rad + turn_rad) - math.cos(yaw_rad))
+    return (x_m, y_m, math.remainder(yaw_rad + turn_rad, math.tau))
+
+
+def relative_pose(start, end):
+    """
+    Return a planar pose as seen from another: the move from ``start`` to ``end``.
+
+    :param start: ``(x_m, y_m, yaw_rad)``.
+    :param end: ``(x_m, y_m, yaw_rad)`` in the same frame.
+    :return: ``(x_m, y_m, yaw_rad)`` of ``end`` in the frame of ``start``.
+    """
+    dx_m, dy_m = end[0] - start[0], end[1] - start[1]
+    cos_yaw, sin_yaw = math.cos(start[2]), math.sin(start[2])
+    return (cos_yaw * dx_m + sin_yaw * dy_m, -sin_yaw * dx_m + cos_yaw * dy_m,
+            math.remainder(end[2] - start[2], math.tau))
+
+
+def compose_poses(pose, move):
+    """
+    Return where a planar pose ends after a move given in its own frame.
+
+    :param pose: ``(x_m, y_m, yaw_rad)``.
+    :param move: ``(x_m, y_m, yaw_rad)`` relative to ``pose``.
+    :return: ``(x_m, y_m, yaw_rad)``, yaw in [-pi, pi].
+    """
+    cos_yaw, sin_yaw = math.cos(pose[2]), math.sin(pose[2])
+    return (pose[0] + cos_yaw * move[0] - sin_yaw * move[1],
+            pose[1] + sin_yaw * move[0] + cos_yaw * move[1],
+            math.remainder(pose[2] + move[2], math.tau))
+
+
 class RememberedRoute:
     """
     The floor points of the line last seen, kept where they lie as the robot moves on.
 
-    The robot's pose is dead-reckoned from the commands it was given (each held until the
-    next frame), in a frame fixed to the floor where the controller started; the points are
-    kept in that frame and given back in the robot's. A sighting is put on the floor only
+    The robot's pose is dead-reckoned, in a frame fixed to the floor where the controller
+    started, from the change of a measured pose (wheel odometry) where one is given at two
+    steps in a row, and otherwise from the commands it was given (each held until the next
+    frame), which a real base follows only after a lag; the points are kept in that frame and
+    given back in the robot's. A sighting is put on the floor only
     when the route is asked for: every frame that sees the line replaces it, and few are
     ever driven.
     """
@@ -269,28 +322,28 @@ class RememberedRoute:
     def __init__(self):
         """Make a route with no points, the robot at the origin."""
         self._pose = (0.0, 0.0, 0.0)
+        # The pose measured at the last step (in the measuring frame), or None.
+        self._measured_pose = None
         # The last sighting as (pose, points in the robot's frame), until put on the floor.
         self._sighting = None
         self._points = np.empty((0, 2))
 
-    def advance(self, command, dt_s):
+    def advance(self, command, dt_s, measured_pose=None):
         """
-        Move the robot on by a command held for a while (an arc of a circle, or a line).
+        Move the robot on: as measured, else by a command held for a while.
 
         :param command: the VelocityCommand the robot drove.
         :param dt_s: how long it drove it, in seconds.
+        :param measured_pose: the robot's ``(x_m, y_m, yaw_rad)`` now in a frame of its own
+            (odometry's), or None. The robot moves by the change since the last measured pose
+            when there was one at the last step; otherwise by the command, as an arc.
         """
-        x_m, y_m, yaw_rad = self._pose
-        distance_m = command.linear_mps * dt_s
-        turn_rad = command.angular_radps * dt_s
-        if abs(turn_rad) < 1e-9:
-            x_m += distance_m * math.cos(yaw_rad)
-            y_m += distance_m * math.sin(yaw_rad)
+        if measured_pose is not None and self._measured_pose is not None:
+            self._pose = compose_poses(self._pose, relative_pose(self._measured_pose,
+                                                                 measured_pose))
         else:
-            radius_m = distance_m / turn_rad
-            x_m += radius_m * (math.sin(yaw_rad + turn_rad) - math.sin(yaw_rad))
-            y_m -= radius_m * (math.cos(yaw_rad + turn_rad) - math.cos(yaw_rad))
-        self._pose = (x_m, y_m, math.remainder(yaw_rad + turn_rad, math.tau))
+            self._pose = arc_pose(self._pose, command.linear_mps, command.angular_radps, dt_s)
+        self._measured_pose = measured_pose
 
     def remember(self, floor_xy_m):
         """
@@ -407,7 +460,7 @@ class LineFollowingController:
         self._path_estimate = None
         self._route = RememberedRoute()
 
-    def update(self, detection, time_s, floor_xy_m=None):
+    def update(self, detection, time_s, floor_xy_m=None, odometry_pose=None):
         """
         Return the velocity command for one camera frame.
 
@@ -418,6 +471,9 @@ class LineFollowingController:
             y left, metres) of the n bands that saw the line, nearest first; None when the
             camera geometry is not known yet; the 'path' law treats None or no points as no
             line.
+        :param odometry_pose: the robot's ``(x_m, y_m, yaw_rad)`` at the frame's time in the
+            frame of its wheel odometry, or None: where it is given for this frame and the
+            last, the route last seen is driven by it rather than by the commands.
         :return: a VelocityCommand. Without a trusted line the linear speed is never
             positive except while coasting through a short gap on the last command.
         """
@@ -428,8 +484,8 @@ class LineFollowingController:
             # Time went backwards (a restarted simulation, a looped bag): what was seen
             # before is not recent, nor where it was.
             self._last_seen_s = -math.inf
-            self._route.forget()
-        self._route.advance(self._command, dt_s)
+            self._route = RememberedRoute()
+        self._route.advance(self._command, dt_s, odometry_pose)
         self._time_s = time_s
         target = None
         if detection.found and (config.steering_law == 'proportional'

@@ -13,6 +13,8 @@ from dataclasses import fields
 import math
 
 from conftest import PACKAGE_DIR
+from followbot.controller import arc_pose
+from followbot.controller import compose_poses
 from followbot.controller import ControllerConfig
 from followbot.controller import estimate_path
 from followbot.controller import line_ends_in_view
@@ -21,6 +23,7 @@ from followbot.controller import LOST_LINE_BEHAVIOURS
 from followbot.controller import MAX_TIME_STEP_S
 from followbot.controller import PathEstimate
 from followbot.controller import pursuit_curvature
+from followbot.controller import relative_pose
 from followbot.controller import RememberedRoute
 from followbot.controller import STEERING_LAWS
 from followbot.controller import VelocityCommand
@@ -1233,6 +1236,40 @@ def test_points_reached_or_left_behind_are_dropped_and_the_end_reached_forgets_a
     assert len(route.ahead(0.1)) == 0
 
 
+def test_a_measured_move_takes_the_place_of_the_commanded_one():
+    # Odometry, in a frame of its own, says the robot went 0.3 m and turned a quarter left
+    # while the command said 0.5 m straight on: the route is where odometry says.
+    route = RememberedRoute()
+    route.remember([(1.0, 1.0)])
+    start = (2.0, -3.0, 0.5)
+    route.advance(VelocityCommand(0.5, 0.0), 0.0, start)
+    route.advance(VelocityCommand(0.5, 0.0), 1.0,
+                  compose_poses(start, (0.3, 0.0, math.pi / 2.0)))
+    np.testing.assert_allclose(route.ahead(0.0), [(1.0, -0.7)], atol=1e-12)
+
+
+def test_a_step_without_a_measured_pose_is_driven_by_the_command_and_not_counted_twice():
+    route = RememberedRoute()
+    route.remember([(2.0, 0.0)])
+    route.advance(VelocityCommand(1.0, 0.0), 0.0, (0.0, 0.0, 0.0))
+    route.advance(VelocityCommand(1.0, 0.0), 0.5, (0.25, 0.0, 0.0))
+    # Odometry missing for a step: the command's 0.5 m.
+    route.advance(VelocityCommand(1.0, 0.0), 0.5, None)
+    # Back, its first pose is only the new reference, not a move from the last one: that
+    # step is the command's 0.5 m too.
+    route.advance(VelocityCommand(1.0, 0.0), 0.5, (10.0, 10.0, 1.0))
+    np.testing.assert_allclose(route.ahead(0.0), [(0.75, 0.0)], atol=1e-12)
+
+
+def test_poses_compose_with_their_relative_moves_and_arcs():
+    start = (1.0, 2.0, 3.0)
+    end = arc_pose(start, 0.4, -1.3, 0.7)
+    np.testing.assert_allclose(compose_poses(start, relative_pose(start, end)), end,
+                               atol=1e-12)
+    # Driving an arc back for the same time returns to the start.
+    np.testing.assert_allclose(arc_pose(end, 0.4, -1.3, -0.7), start, atol=1e-12)
+
+
 def place_after(commands):
     """
     Return where commands, each held for a frame, take the robot, in its frame at the start.
@@ -1328,6 +1365,31 @@ def test_a_route_is_forgotten_when_time_goes_back():
     # A restarted simulation or a looped bag: what was seen is not where the robot now is.
     frames = drive(controller, nothing_seen(), None, 3, start_s=0.0)
     assert all(frame.command.linear_mps == 0.0 for frame in frames)
+
+
+@pytest.mark.parametrize('with_odometry', (True, False))
+def test_a_base_that_lags_its_commands_is_driven_to_a_line_end_by_odometry(with_odometry):
+    # A real base answers its commands late: here it goes half as fast as told. By the
+    # commands the robot would think itself at the line's end halfway there; by odometry (in
+    # a frame of its own) it drives on until it is there.
+    config = ControllerConfig()
+    controller, time_s = tracking_controller(config, seen(), STRAIGHT_AHEAD_M)
+    start = pose = (5.0, -2.0, 1.0)
+    command = controller.update(seen(seen_count=2), time_s + FRAME_PERIOD_S,
+                                STRAIGHT_AHEAD_M[:2], pose)
+    for index in range(SETTLING_FRAMES):
+        pose = arc_pose(pose, 0.5 * command.linear_mps, 0.5 * command.angular_radps,
+                        FRAME_PERIOD_S)
+        command = controller.update(nothing_seen(), time_s + (index + 2) * FRAME_PERIOD_S,
+                                    None, pose if with_odometry else None)
+        if controller.state != 'coasting':
+            break
+    travelled_m = relative_pose(start, pose)[0]
+    end_m = STRAIGHT_AHEAD_M[1][0] - config.line_end_stop_short_m
+    if with_odometry:
+        assert travelled_m == pytest.approx(end_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
+    else:
+        assert travelled_m < 0.7 * end_m
 
 
 def test_the_proportional_law_coasts_on_its_last_command_at_a_line_end():
