@@ -21,7 +21,7 @@ import cv2
 from followbot import calibration
 from followbot import line_sample
 from followbot.compressed_image import compressed_to_array
-from followbot.follower_node import CAMERA_PARAMETERS, DETECTOR_PARAMETERS, IMAGE_QOS
+from followbot.follower_node import CAMERA_PARAMETERS, DETECTOR_PARAMETERS, SENSOR_QOS
 from followbot.ground_projection import CameraGeometry, CameraInfoError
 from followbot.image_conversion import image_to_array, ImageConversionError, to_bgr
 from followbot.line_detector import band_rows, DetectorConfig
@@ -311,7 +311,7 @@ class FrameGrabber(Node):
     def subscribe(self, message_type):
         """Listen to the topic with sensor-data QoS, which every camera publisher matches."""
         self._subscription = self.create_subscription(message_type, self.topic,
-                                                      self.image_callback, IMAGE_QOS)
+                                                      self.image_callback, SENSOR_QOS)
 
     def image_callback(self, msg):
         """Keep the first message after the ones to skip."""

@@ -19,9 +19,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from followbot import frames
 from followbot import messages
 from followbot.compressed_image import compressed_to_array
-from followbot.controller import (ControllerConfig, LineFollowingController, LOST_LINE_BEHAVIOURS,
-                                  STATE_LINE_END, STATE_TRACKING, STEERING_LAWS,
-                                  VelocityCommand)
+from followbot.controller import (arc_pose, ControllerConfig, LineFollowingController,
+                                  LOST_LINE_BEHAVIOURS, STATE_LINE_END, STATE_TRACKING,
+                                  STEERING_LAWS, VelocityCommand)
 from followbot.frame_clock import FrameClock
 from followbot.ground_projection import CameraGeometry, CameraInfoError, CameraIntrinsics
 from followbot.image_conversion import array_to_image, image_to_array, ImageConversionError, to_bgr
@@ -31,6 +31,7 @@ from followbot.node_runner import run_node
 from followbot.parameters import declare_parameters, ParameterSpec, specs_for_config
 from followbot.problem_reports import ProblemReports
 from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -39,9 +40,10 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
-# Sensor-data QoS with depth 1: a controller must never work through a backlog of stale frames.
-IMAGE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                       reliability=ReliabilityPolicy.BEST_EFFORT)
+# Sensor-data QoS with depth 1: a controller must never work through a backlog of stale frames
+# (nor of stale odometry). Best effort takes a reliable publisher's messages too.
+SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                        reliability=ReliabilityPolicy.BEST_EFFORT)
 # How long the final zero Twist may wait to be acknowledged by the subscribers at shutdown.
 STOP_ACK_TIMEOUT = Duration(seconds=0.5)
 # Debug images kept for a slow subscriber: half a second of a 20 Hz camera, so a video that
@@ -59,6 +61,7 @@ CAUSE_IMAGE = 'image'
 CAUSE_CAMERA_INFO = 'camera_info'
 CAUSE_WAITING_FOR_CAMERA_INFO = 'waiting for camera_info'
 CAUSE_STAMP = 'stamp'
+CAUSE_ODOMETRY = 'odometry'
 CAUSE_INTERNAL = 'internal'
 
 # Range and meaning (or, for a text, just the meaning) of each detector and controller
@@ -145,8 +148,8 @@ CONTROLLER_PARAMETERS = {
                                           'seen.'),
     'line_end_stop_short_m': (0.0, 5.0, 'Path law, with stop_at_line_end: where the robot saw '
                               'the line end ahead, it drives on along the line last seen (by '
-                              'dead reckoning of its commands) and stops this far short of '
-                              'its end, before stopping or searching there.'),
+                              'dead reckoning: odometry, else its commands) and stops this far '
+                              'short of its end, before stopping or searching there.'),
 }
 # Where the camera is on the robot: the path law needs it to put image points on the floor.
 # The defaults are the simulated TurtleBot 2's Kinect (followbot_sim's camera_pitch_deg).
@@ -166,6 +169,11 @@ FOLLOWER_PARAMETERS = {
     'image_timeout_s': ParameterSpec(
         0.5, 'Stop when no camera image came for this long, in wall-clock time whatever the '
         'time source (a dead simulator stops /clock too).', 0.05, 10.0),
+    'odometry_timeout_s': ParameterSpec(
+        0.5, 'Path law: the line last seen is driven along (at its end, or where it vanished) '
+        'by the wheel odometry on odom (nav_msgs/Odometry) when its stamp is within this '
+        "long of the camera frame's, else by the commands given; 0 never uses odometry.",
+        0.0, 10.0),
     # Read-only: a publisher's message type cannot change while the node runs.
     'image_transport': ParameterSpec(
         'raw', "How camera images come: 'raw' (sensor_msgs/Image on camera/rgb/image_raw) "
@@ -192,6 +200,7 @@ class FollowerSettings:
     camera_pitch_deg: float
     camera_forward_m: float
     image_timeout_s: float
+    odometry_timeout_s: float
 
     @classmethod
     def from_parameters(cls, values: dict):
@@ -207,7 +216,8 @@ class FollowerSettings:
             detector=DetectorConfig(**{name: values[name] for name in DETECTOR_PARAMETERS}),
             controller=ControllerConfig(
                 **{name: values[name] for name in CONTROLLER_PARAMETERS}),
-            **{name: values[name] for name in (*CAMERA_PARAMETERS, 'image_timeout_s')})
+            **{name: values[name] for name in (*CAMERA_PARAMETERS, 'image_timeout_s',
+                                               'odometry_timeout_s')})
 
 
 class FollowerNode(Node):
@@ -245,7 +255,13 @@ class FollowerNode(Node):
         # camera_info is subscribed first: when it and an image are ready together, the
         # executor then takes the intrinsics before the image that needs them.
         self._camera_info_subscription = self.create_subscription(
-            CameraInfo, 'camera/rgb/camera_info', self.camera_info_callback, IMAGE_QOS)
+            CameraInfo, 'camera/rgb/camera_info', self.camera_info_callback, SENSOR_QOS)
+        # Odometry too comes before the images: the frame then uses the latest.
+        self._odometry = None
+        self._odometry_used = False
+        self._odometry_messages = 0
+        self._odometry_subscription = self.create_subscription(
+            Odometry, 'odom', self.odometry_callback, SENSOR_QOS)
         self._image_subscription = self._subscribe_to_images(parameters['image_transport'])
         # The camera watchdog runs on wall time: under use_sim_time a dead simulator stops
         # /clock as well as the images, and a timer on the node's clock would never fire.
@@ -276,6 +292,11 @@ class FollowerNode(Node):
         """
         return {'frames': self._frames, 'frames_line_lost': self._frames_line_lost,
                 'recoveries': self._recoveries}
+
+    @property
+    def odometry_messages(self) -> int:
+        """Return how many odometry messages came, usable or not."""
+        return self._odometry_messages
 
     def _check_parameters(self, parameters: list) -> SetParametersResult:
         # rclpy has already checked each value's type and range; this checks them together
@@ -341,10 +362,48 @@ class FollowerNode(Node):
         self._camera_intrinsics = intrinsics
         self._camera_geometry = self._make_camera_geometry(intrinsics)
 
+    def odometry_callback(self, msg: Odometry) -> None:
+        """Take the robot's odometry: where it is and how it moves, at the message's stamp."""
+        self._odometry_messages += 1
+        try:
+            self._take_odometry(msg)
+        except Exception as error:  # noqa: B902 - no message may bring the follower down.
+            self._internal_error(error)
+
+    def _take_odometry(self, msg: Odometry) -> None:
+        position, rotation = msg.pose.pose.position, msg.pose.pose.orientation
+        twist = msg.twist.twist
+        stamp_s = messages.seconds(msg.header.stamp)
+        pose = (position.x, position.y, frames.yaw_from_quaternion(
+            (rotation.x, rotation.y, rotation.z, rotation.w)))
+        figures = (*pose, twist.linear.x, twist.angular.z)
+        if stamp_s <= 0.0 or not all(math.isfinite(value) for value in figures):
+            # Not used, and what was known is forgotten: the route is then driven by the
+            # commands, as without odometry.
+            self._odometry = None
+            self._report_error(
+                CAUSE_ODOMETRY, f'Cannot use odometry on {self._odometry_subscription.topic_name}'
+                ': it needs a header.stamp and a finite pose and twist; driving by the commands '
+                'instead.')
+            return
+        self._reports.resolved(CAUSE_ODOMETRY)
+        self._odometry = (stamp_s, pose, twist.linear.x, twist.angular.z)
+
+    def _odometry_pose(self, time_s: float, stamped: bool):
+        """Return the robot's odometry pose at a stamped frame's time, or None if unknown."""
+        timeout_s = self._settings.odometry_timeout_s
+        if self._odometry is None or not stamped or timeout_s == 0.0:
+            return None
+        stamp_s, pose, linear_mps, angular_radps = self._odometry
+        if abs(time_s - stamp_s) > timeout_s:
+            return None
+        # Odometry comes at its own rate: carried on its twist to the frame's time.
+        return arc_pose(pose, linear_mps, angular_radps, time_s - stamp_s)
+
     def _subscribe_to_images(self, transport: str):
         """Subscribe to the camera's raw or compressed images, named as image_transport does."""
         if transport == RAW_TRANSPORT:
-            return self.create_subscription(Image, IMAGE_TOPIC, self.image_callback, IMAGE_QOS)
+            return self.create_subscription(Image, IMAGE_TOPIC, self.image_callback, SENSOR_QOS)
         if transport != COMPRESSED_TRANSPORT:
             raise ValueError(f"image_transport must be '{RAW_TRANSPORT}' or "
                              f"'{COMPRESSED_TRANSPORT}', got {transport!r}.")
@@ -352,7 +411,7 @@ class FollowerNode(Node):
         # remapping camera/rgb/image_raw moves the compressed topic with it.
         topic = self.resolve_topic_name(IMAGE_TOPIC) + COMPRESSED_SUFFIX
         return self.create_subscription(CompressedImage, topic,
-                                        self.compressed_image_callback, IMAGE_QOS)
+                                        self.compressed_image_callback, SENSOR_QOS)
 
     def image_callback(self, msg: Image) -> None:
         """Detect the line in a camera frame and publish the command it calls for."""
@@ -402,7 +461,9 @@ class FollowerNode(Node):
                 self._publish(LineFollowingController.stop_command(), msg.header.stamp)
                 return
             floor_xy_m = self._floor_points(detection, geometry)
-        command = self._controller.update(detection, time_s, floor_xy_m)
+        odometry_pose = self._odometry_pose(time_s, stamped)
+        self._odometry_used = odometry_pose is not None
+        command = self._controller.update(detection, time_s, floor_xy_m, odometry_pose)
         self._publish(command, msg.header.stamp)
         self._count_frame(detection.found)
         self._publish_views(msg.header, image, encoding, detection, command)
@@ -464,6 +525,7 @@ class FollowerNode(Node):
                                          if estimate else ''),
             'linear_mps': round(command.linear_mps, 3),
             'angular_radps': round(command.angular_radps, 3),
+            'odometry_used': self._odometry_used,
             **self.line_statistics,
         }
         status = DiagnosticStatus(

@@ -32,17 +32,18 @@ FOCAL_PX = (WIDTH_PX / 2) / math.tan(math.radians(30.0))
 SETTLING_FRAMES = 10
 
 
-def camera_frame(line_column_px=None, encoding='bgr8') -> Image:
+def camera_frame(line_column_px=None, encoding='bgr8', line_top_px=0) -> Image:
     """
     Return a grey camera Image with a yellow line standing on a column, or no line.
 
     The line is as wide, at each row, as the Kinect sees the course's 0.19 m line there, so
-    its stripes are the width the follower expects.
+    its stripes are the width the follower expects. It ends at row ``line_top_px`` (0: it
+    runs on out of the view's top).
     """
     bgr = np.full((HEIGHT_PX, WIDTH_PX, 3), FLOOR_GREY, np.uint8)
     if line_column_px is not None:
         half_widths_px = KINECT.line_width_px(np.arange(HEIGHT_PX), LINE_WIDTH_M) / 2.0
-        for row, half_width_px in enumerate(half_widths_px):
+        for row, half_width_px in enumerate(half_widths_px[line_top_px:], line_top_px):
             first = max(int(round(line_column_px - half_width_px)), 0)
             bgr[row, first:int(round(line_column_px + half_width_px))] = YELLOW_BGR
     msg = array_to_image(bgr, 'bgr8')

@@ -16,6 +16,7 @@ from followbot_sim.sim_node import SIMULATOR_PARAMETERS
 from follower_harness import (BOOK_PARAMETERS_FILE, camera_frame, FLOOR_GREY, FRAME_PERIOD_S,
                               Harness, HEIGHT_PX, PARAMETERS_FILE, SETTLING_FRAMES, WIDTH_PX)
 from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
 from rclpy.exceptions import ParameterException
@@ -112,6 +113,74 @@ def test_searches_toward_the_side_last_seen_without_driving(harness):
         command = harness.send(camera_frame(None))
     assert command.linear.x == 0.0
     assert command.angular.z < 0.0
+
+
+# Where the line ends in the test camera's frames: 0.62 m ahead.
+LINE_END_ROW_PX = 240
+
+
+def odometry(time_s, x_m, linear_mps) -> Odometry:
+    """Return a base's Odometry: driving straight along x at a speed, there at a time."""
+    msg = Odometry()
+    msg.header.stamp = messages.stamp(time_s)
+    msg.pose.pose.position.x = x_m
+    msg.pose.pose.orientation.w = 1.0
+    msg.twist.twist.linear.x = linear_mps
+    return msg
+
+
+def frames_driven_to_a_line_end(harness, with_odometry) -> int:
+    """
+    Return how many frames the follower drives on after seeing the line end ahead.
+
+    The base goes half as fast as it is told, as a real one may lag its commands; with
+    odometry its odom topic says so, stamped with each frame's time.
+    """
+    publisher = harness.client.create_publisher(Odometry, 'odom', 10)
+    harness.spin_until(lambda: publisher.get_subscription_count() > 0)
+    x_m = linear_mps = 0.0
+    command = Twist()
+    frames = [camera_frame(WIDTH_PX // 2)] * SETTLING_FRAMES + [
+        camera_frame(WIDTH_PX // 2, line_top_px=LINE_END_ROW_PX)] + [camera_frame(None)] * 60
+    driven = 0
+    for index, frame in enumerate(frames):
+        linear_mps = 0.5 * command.linear.x
+        x_m += linear_mps * FRAME_PERIOD_S
+        if with_odometry:
+            stamp_s = harness.time_s + FRAME_PERIOD_S
+            publisher.publish(odometry(stamp_s, x_m, linear_mps))
+            harness.spin_until(lambda: harness.follower._odometry is not None
+                               and abs(harness.follower._odometry[0] - stamp_s) < 1e-6)
+        command = harness.send(frame)
+        driven += index > SETTLING_FRAMES and command.linear.x > 0.0
+    assert command == Twist()
+    return driven
+
+
+def test_drives_to_a_line_end_by_odometry_where_the_base_lags(ros_context):
+    # By its commands the robot would think itself at the line's end halfway there.
+    counts = {}
+    for with_odometry in (False, True):
+        harness = Harness(ros_context)
+        try:
+            counts[with_odometry] = frames_driven_to_a_line_end(harness, with_odometry)
+        finally:
+            harness.close()
+    assert counts[True] > 1.5 * counts[False]
+
+
+def test_bad_odometry_is_reported_once_and_the_line_still_followed(harness):
+    publisher = harness.client.create_publisher(Odometry, 'odom', 10)
+    harness.spin_until(lambda: publisher.get_subscription_count() > 0)
+    bad = odometry(1.0, float('nan'), 0.0)
+    for _ in range(3):
+        publisher.publish(bad)
+    harness.spin_until(lambda: harness.errors, timeout_s=2.0)
+    for _ in range(20):
+        harness.executor.spin_once(timeout_sec=0.01)
+    assert len(harness.errors) == 1
+    assert 'odom' in harness.errors[0]
+    assert harness.send_many(WIDTH_PX // 2).linear.x > 0.0
 
 
 def test_drives_on_through_a_short_gap(harness):
