@@ -2,11 +2,12 @@
 ``ros2 run followbot replay run.mcap``: feed a recording's camera to a follower, compare commands.
 
 Offline regression on real or simulated recordings. A real follower node runs in this process;
-the recording's camera frames (raw or compressed), their camera_info and its ``/clock`` are
-published to it as they were recorded, and each command it answers with is compared with the
-command recorded for that frame (see :mod:`followbot.command_comparison`). By default each frame
-waits for the follower's answer, so the replay runs as fast as the follower can; ``--rate 1``
-sends the frames at their recorded pace. With ``--params-file`` the follower is a changed one
+the recording's camera frames (raw or compressed), their camera_info, the robot's wheel
+odometry and its ``/clock`` are published to it as they were recorded, and each command it
+answers with is compared with the command recorded for that frame (see
+:mod:`followbot.command_comparison`). By default each frame waits for the follower's answer,
+so the replay runs as fast as the follower can; ``--rate 1`` sends the frames at their recorded
+pace. With ``--params-file`` the follower is a changed one
 and the differences are the point: they are printed.
 
 The follower runs under a namespace of its own, with its own clock topic: it never drives a
@@ -41,6 +42,11 @@ IMAGE_TYPE = 'sensor_msgs/msg/Image'
 COMPRESSED_TYPE = 'sensor_msgs/msg/CompressedImage'
 CAMERA_INFO_TYPE = 'sensor_msgs/msg/CameraInfo'
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
+# The wheel odometry the follower drives by (see followbot.follower_node): ``.../odom``, not the
+# simulator's ``.../ground_truth/odom``.
+ODOMETRY_NAME = 'odom'
+GROUND_TRUTH_ODOMETRY_SUFFIX = '/ground_truth/odom'
 STATUS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 # The follower's status topic (~/status): the only DiagnosticArray named .../status.
 STATUS_SUFFIX = '/status'
@@ -50,6 +56,7 @@ CAMERA_INFO_NAME = 'camera_info'
 # The follower's topics, relative to its namespace (see followbot.follower_node).
 FOLLOWER_IMAGE_TOPIC = 'camera/rgb/image_raw'
 FOLLOWER_CAMERA_INFO_TOPIC = 'camera/rgb/camera_info'
+FOLLOWER_ODOMETRY_TOPIC = 'odom'
 CLOCK_TOPIC = '/clock'
 REPLAY_CLOCK_TOPIC = 'clock'
 NAMESPACE_PREFIX = '/followbot_replay_'
@@ -135,6 +142,7 @@ class RecordingPlan:
         frame_stamps = {}
         statuses = {}
         camera_infos = {}
+        odometry = {}
         commands = []
         for message in read_messages(path):
             types.setdefault(message.topic, message.type_name)
@@ -144,6 +152,9 @@ class RecordingPlan:
                     header_stamp_ns(message.data))
             elif message.type_name in COMMAND_TYPES:
                 commands.append(message)
+            elif message.type_name == ODOMETRY_TYPE:
+                odometry.setdefault(message.topic, []).append(
+                    (header_stamp_ns(message.data) or 0, message.data))
             elif message.type_name == CAMERA_INFO_TYPE:
                 camera_infos.setdefault(message.topic, {}).setdefault(
                     header_stamp_ns(message.data), message.data)
@@ -161,6 +172,10 @@ class RecordingPlan:
         clocks = [topic for topic, name in types.items()
                   if name == CLOCK_TYPE and topic.endswith(CLOCK_TOPIC)]
         self.clock_topic = clocks[0] if len(clocks) == 1 else None
+        self.odometry_topic = odometry_topic(self.camera_topic, list(odometry))
+        # By stamp: the robot's follower had taken each before the frame of its time (the
+        # simulator sends it first), though a recording may log the two in either order.
+        self.odometry = sorted(odometry.get(self.odometry_topic, ()), key=lambda item: item[0])
         command_topics = [topic for topic, name in types.items() if name in COMMAND_TYPES]
         named = [topic for topic in command_topics if topic.rsplit('/', 1)[-1] ==
                  COMMAND_TOPIC_NAME]
@@ -189,8 +204,9 @@ class RecordingPlan:
         commands = (f'{len(self.recorded_commands)} commands on {self.command_topic} (paired '
                     f'with frames by {self.paired_by})'
                     if self.command_topic else 'no recorded commands')
+        odometry = f', odometry on {self.odometry_topic}' if self.odometry_topic else ''
         return (f'{len(self.frame_times_ns)} frames on {self.camera_topic} '
-                f'({self.camera_type.rsplit("/", 1)[-1]}), {commands}')
+                f'({self.camera_type.rsplit("/", 1)[-1]}){odometry}, {commands}')
 
 
 def camera_info_topic(image_topic: str) -> str:
@@ -203,6 +219,25 @@ def camera_info_topic(image_topic: str) -> str:
     base = image_topic[:-len(COMPRESSED_SUFFIX)] if image_topic.endswith(COMPRESSED_SUFFIX) \
         else image_topic
     return base.rsplit('/', 1)[0] + '/' + CAMERA_INFO_NAME
+
+
+def odometry_topic(image_topic: str, topics: list) -> str | None:
+    """
+    Return the wheel odometry topic of the robot whose camera an image topic is, or None.
+
+    :param image_topic: the camera topic replayed, such as ``/r1/camera/rgb/image_raw``.
+    :param topics: the recording's ``nav_msgs/Odometry`` topics.
+    :return: the one in the camera's namespace (``/r1/odom``), else the only one, else None.
+    """
+    wheel = [topic for topic in topics if topic.rsplit('/', 1)[-1] == ODOMETRY_NAME
+             and not topic.endswith(GROUND_TRUTH_ODOMETRY_SUFFIX)]
+    base = image_topic[:-len(COMPRESSED_SUFFIX)] if image_topic.endswith(COMPRESSED_SUFFIX) \
+        else image_topic
+    if base.endswith('/' + FOLLOWER_IMAGE_TOPIC):
+        beside = base[:-len(FOLLOWER_IMAGE_TOPIC)] + ODOMETRY_NAME
+        if beside in wheel:
+            return beside
+    return wheel[0] if len(wheel) == 1 else None
 
 
 def _choose(wanted: str | None, candidates: list, what: str, path) -> str:
@@ -248,6 +283,8 @@ class ReplayFeeder(Node):
             CameraInfo, FOLLOWER_CAMERA_INFO_TOPIC, QUEUE_DEPTH)
         self.clock_publisher = self.create_publisher(
             import_message_class(CLOCK_TYPE), REPLAY_CLOCK_TOPIC, QUEUE_DEPTH)
+        self.odometry_publisher = self.create_publisher(
+            import_message_class(ODOMETRY_TYPE), FOLLOWER_ODOMETRY_TOPIC, QUEUE_DEPTH)
         self.answers = []
         self.command_subscription = self.create_subscription(
             TwistStamped if stamped_commands else Twist, COMMAND_TOPIC_NAME,
@@ -263,6 +300,7 @@ class ReplayFeeder(Node):
         """Tell whether the follower hears the camera and this node hears the follower."""
         return (self.image_publisher.get_subscription_count() > 0
                 and self.camera_info_publisher.get_subscription_count() > 0
+                and self.odometry_publisher.get_subscription_count() > 0
                 and self.command_subscription.get_publisher_count() > 0)
 
 
@@ -308,6 +346,8 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
             raise RuntimeError('The follower did not connect to the replay within '
                                f'{CONNECT_TIMEOUT_S:g} s.')
         topics = [plan.camera_topic] + ([plan.clock_topic] if plan.clock_topic else [])
+        odometry = iter(plan.odometry)
+        next_odometry = next(odometry, None)
         camera_info = None
         start_wall_s = time.monotonic()
         first_log_ns = last_log_ns = None
@@ -322,8 +362,15 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
                 due_s = start_wall_s + (message.log_time_ns - first_log_ns) / (
                     NANOSECONDS_PER_SECOND * options.rate)
                 _spin_until(executor, lambda: False, due_s)
-            # As the camera does: the intrinsics first, then the frame they describe.
             stamp_ns = header_stamp_ns(message.data)
+            while next_odometry is not None and next_odometry[0] <= (stamp_ns or 0):
+                # Each taken in turn: the follower keeps only the latest.
+                taken = follower.odometry_messages
+                feeder.odometry_publisher.publish(next_odometry[1])
+                _spin_until(executor, lambda: follower.odometry_messages > taken,
+                            time.monotonic() + options.answer_timeout)
+                next_odometry = next(odometry, None)
+            # As the camera does: the intrinsics first, then the frame they describe.
             camera_info = plan.camera_infos.get(stamp_ns, camera_info)
             if camera_info is not None:
                 feeder.camera_info_publisher.publish(camera_info)

@@ -5,6 +5,7 @@ import math
 from followbot.command_comparison import (answers_by_order, answers_by_status, Comparison,
                                           FrameResult, LISTED_DIFFERENCES, Velocity)
 from followbot.recording import header_stamp_ns
+from followbot.replay import odometry_topic
 from geometry_msgs.msg import Twist
 import pytest
 from rclpy.serialization import serialize_message
@@ -110,3 +111,18 @@ def test_header_stamp_is_read_from_the_serialised_bytes():
     assert header_stamp_ns(serialize_message(msg)) == 12_000_000_345
     assert header_stamp_ns(b'\x00\x01') is None
     assert header_stamp_ns(b'\x00\x07' + bytes(10)) is None
+
+
+@pytest.mark.parametrize('camera, topics, expected', [
+    # The robot's own beside its camera, not another robot's nor the ground truth.
+    ('/r1/camera/rgb/image_raw/compressed', ['/r2/odom', '/r1/ground_truth/odom', '/r1/odom'],
+     '/r1/odom'),
+    ('/camera/rgb/image_raw', ['/ground_truth/odom', '/odom'], '/odom'),
+    # A real robot's camera topic: its only wheel odometry.
+    ('/image_raw', ['/base/odom'], '/base/odom'),
+    # Several, none beside the camera: which is the robot's cannot be told.
+    ('/image_raw', ['/r1/odom', '/r2/odom'], None),
+    ('/image_raw', ['/ground_truth/odom'], None),
+])
+def test_a_replay_feeds_the_wheel_odometry_of_the_camera_robot(camera, topics, expected):
+    assert odometry_topic(camera, topics) == expected

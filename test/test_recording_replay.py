@@ -94,6 +94,23 @@ def test_replaying_a_lockstep_run_reproduces_every_command(lockstep_recording):
             '0 differ by more than 0; max difference 0 ') in done.stdout
 
 
+def test_replay_feeds_the_odometry_a_line_end_was_driven_to_by(tmp_path):
+    # At the line_end course's end the follower drives on by odometry: fed the recorded
+    # odometry before each frame (by stamp, however the recording logged them), a replay
+    # gives the same commands there too. Driven by its commands instead, 12 of them differ.
+    path = tmp_path / 'line_end.mcap'
+    record_run(path, '--course', 'line_end')
+    statuses = read_back(path)['/follower/status']
+    used = [{value.key: value.value for value in status.status[0].values}['odometry_used']
+            for status in statuses]
+    assert set(used) == {'True'}
+    done = run_command('followbot.replay', str(path))
+    frames = int(RUN_S * CAMERA_HZ)
+    assert done.returncode == 0, done.stdout
+    assert 'odometry on /odom' in done.stdout
+    assert f'{frames} identical, 0 differ by more than 0' in done.stdout
+
+
 def test_replay_into_a_changed_follower_prints_the_differences(lockstep_recording, tmp_path):
     path, _ = lockstep_recording
     params_file = tmp_path / 'far_sighted.yaml'
