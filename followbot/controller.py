@@ -53,6 +53,9 @@ STATE_COASTING = 'coasting'
 STATE_ACQUIRING = 'acquiring'
 STATE_LOST = 'lost'
 STATE_LINE_END = 'line end'
+# Where a coasting robot drives: along the line it saw end ahead, or saw run on and vanish.
+TO_LINE_END = 'to line end'
+ALONG_VANISHED_LINE = 'along vanished line'
 # Longest time step between frames that the acceleration limits honour; a longer pause (a
 # paused simulation, a camera hiccup) starts again from the limits, not from a huge step.
 MAX_TIME_STEP_S = 0.2
@@ -430,6 +433,11 @@ class LineFollowingController:
         return self._state
 
     @property
+    def coasting_along(self):
+        """Return TO_LINE_END or ALONG_VANISHED_LINE while coasting along a route, else None."""
+        return self._coasting_along
+
+    @property
     def path_estimate(self):
         """Return the PathEstimate of the last frame that had one, or None."""
         return self._path_estimate
@@ -455,6 +463,7 @@ class LineFollowingController:
         self._last_seen_s = -math.inf
         self._end_in_view = False
         self._left_at_side = False
+        self._coasting_along = None
         self._time_s = None
         self._command = self.stop_command()
         self._path_estimate = None
@@ -487,6 +496,7 @@ class LineFollowingController:
             self._route = RememberedRoute()
         self._route.advance(self._command, dt_s, odometry_pose)
         self._time_s = time_s
+        self._coasting_along = None
         target = None
         if detection.found and (config.steering_law == 'proportional'
                                 or (floor_xy_m is not None and len(floor_xy_m) > 0)):
@@ -524,6 +534,7 @@ class LineFollowingController:
             if len(route):
                 # Seen ending ahead, or running on: on along the points seen last.
                 self._state = STATE_COASTING
+                self._coasting_along = TO_LINE_END if to_end else ALONG_VANISHED_LINE
                 target = self._path_target(route, 1.0, route_end=True)
             elif (following and not to_end
                     and time_s - self._last_seen_s <= config.line_memory_s):

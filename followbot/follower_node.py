@@ -19,9 +19,10 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from followbot import frames
 from followbot import messages
 from followbot.compressed_image import compressed_to_array
-from followbot.controller import (arc_pose, ControllerConfig, LineFollowingController,
-                                  LOST_LINE_BEHAVIOURS, STATE_LINE_END, STATE_TRACKING,
-                                  STEERING_LAWS, VelocityCommand)
+from followbot.controller import (ALONG_VANISHED_LINE, arc_pose, ControllerConfig,
+                                  LineFollowingController, LOST_LINE_BEHAVIOURS,
+                                  STATE_LINE_END, STATE_LOST, STATE_TRACKING,
+                                  STEERING_LAWS, TO_LINE_END, VelocityCommand)
 from followbot.frame_clock import FrameClock
 from followbot.ground_projection import CameraGeometry, CameraInfoError, CameraIntrinsics
 from followbot.image_conversion import array_to_image, image_to_array, ImageConversionError, to_bgr
@@ -275,6 +276,7 @@ class FollowerNode(Node):
         self._frame_clock = FrameClock()
         self._camera_info = None
         self._line_was_found = None
+        self._line_situation = None
         self._frames = 0
         self._frames_line_lost = 0
         self._recoveries = 0
@@ -575,19 +577,30 @@ class FollowerNode(Node):
     def _count_frame(self, found: bool) -> None:
         self._frames += 1
         self._frames_line_lost += not found
-        if found == self._line_was_found:
+        if found != self._line_was_found:
+            self._recoveries += found and self._line_was_found is False
+            self._line_was_found = found
+        # What the robot does about the line, logged when it changes. Coasting through a short
+        # gap is not worth a line; losing the line after it is.
+        situation = 'found' if found else (self._controller.coasting_along or (
+            self._controller.state if self._controller.state in (STATE_LINE_END, STATE_LOST)
+            else self._line_situation))
+        if situation == self._line_situation:
             return
-        self._recoveries += found and self._line_was_found is False
-        self._line_was_found = found
-        if found:
-            self.get_logger().info('Line found.')
-        elif self._controller.state == STATE_LINE_END:
-            self.get_logger().info('Line ended ahead: stopped at its end.')
+        self._line_situation = situation
+        searching = self._settings.controller.lost_line_behaviour == 'search'
+        logger = self.get_logger()
+        if situation == 'found':
+            logger.info('Line found.')
+        elif situation == TO_LINE_END:
+            logger.info('Line ends ahead: driving on to its end.')
+        elif situation == ALONG_VANISHED_LINE:
+            logger.warn('Line vanished: driving on along where it was seen, then searching.')
+        elif situation == STATE_LINE_END:
+            logger.info("At the line's end.")
         else:
-            self.get_logger().warn(
-                'Line lost: ' + ('searching toward where it was last seen.'
-                                 if self._settings.controller.lost_line_behaviour == 'search'
-                                 else 'stopping.'))
+            logger.warn('Line lost: ' + ('searching toward where it was last seen.' if searching
+                                         else 'stopping.'))
 
     def _publish(self, command: VelocityCommand, stamp=None) -> None:
         twist = Twist()

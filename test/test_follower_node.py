@@ -169,6 +169,21 @@ def test_drives_to_a_line_end_by_odometry_where_the_base_lags(ros_context):
     assert counts[True] > 1.5 * counts[False]
 
 
+def test_says_once_what_it_does_at_a_line_end(harness):
+    frames_driven_to_a_line_end(harness, with_odometry=False)
+    assert [log.msg for log in harness.logs][-3:] == [
+        'Line found.', 'Line ends ahead: driving on to its end.', "At the line's end."]
+
+
+def test_says_once_that_the_line_vanished_and_once_that_it_is_lost(harness):
+    harness.send_many(WIDTH_PX // 2)
+    for _ in range(60):
+        harness.send(camera_frame(None))
+    assert [log.msg for log in harness.logs][1:] == [
+        'Line found.', 'Line vanished: driving on along where it was seen, then searching.',
+        'Line lost: searching toward where it was last seen.']
+
+
 def test_bad_odometry_is_reported_once_and_the_line_still_followed(harness):
     publisher = harness.client.create_publisher(Odometry, 'odom', 10)
     harness.spin_until(lambda: publisher.get_subscription_count() > 0)
