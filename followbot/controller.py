@@ -27,22 +27,38 @@ the end of the line, until the line comes back into view. Where the line ended i
 (not at the image's side, where it may go on out of view), the robot first drives on to where it
 saw the end (path law): the camera sees the floor only from some way ahead, so the last frame
 that saw the line showed its end still that far off. It follows the line's floor points of that
-frame, kept where they lay on the floor by dead reckoning of its own commands, and stops
+frame, kept where they lay on the floor by dead reckoning (odometry, else its own commands),
+and stops
 ``line_end_stop_short_m`` before their end. A line that turned away to a side just before it
 ended may go on round a corner too sharp for the camera (a hairpin whose turn leaves the view at
 its bottom edge, a 120-degree corner), so the searching robot first turns up to
 ``corner_search_angle_deg`` towards that side (at ``corner_search_angular_speed_radps``: the
-corner was seen, so faster than a search for a line lost anywhere), then stops. A line found
+corner was seen, so faster than a search for a line lost anywhere), turns back to face where
+the line ended, and stops there. A line found while searching that lies where the robot has just
+driven (most of its points within ``trail_tolerance_m`` of the robot's dead-reckoned path over
+the last ``trail_length_m``) is the way back, not taken: a robot that lost its line, or saw it
+end where something stands on it, must not follow it back the way it came. A line found
 again is trusted after ``frames_to_trust`` frames in a row. The robot never drives forward
 without a line, but for coasting on the line memory or along the line it last saw.
 
 Angular velocities follow ROS REP-103: positive is counter-clockwise, i.e. a left turn.
 """
 
+import collections
 from dataclasses import dataclass
 import math
 
 import numpy as np
+
+# The robot's dead-reckoned path is kept as points this far apart, this many at most (8 m).
+TRAIL_SPACING_M = 0.02
+MAX_TRAIL_POINTS = 400
+# A line found while searching is the way back when at least this share of its points lie on
+# the robot's path.
+WAY_BACK_SHARE = 0.5
+
+# Turned back to within this of facing where the line ended is facing it.
+FACING_TOLERANCE_RAD = 1e-3
 
 STEERING_LAWS = ('path', 'proportional')
 LOST_LINE_BEHAVIOURS = ('search', 'stop')
@@ -197,6 +213,8 @@ class ControllerConfig:
     corner_search_angle_deg: float = 150.0
     corner_search_angular_speed_radps: float = 3.0
     line_end_stop_short_m: float = 0.1
+    trail_length_m: float = 2.0
+    trail_tolerance_m: float = 0.1
 
     def __post_init__(self):
         """Reject negative or non-finite numbers and unknown laws and behaviours."""
@@ -205,7 +223,7 @@ class ControllerConfig:
                      'line_memory_s', 'search_angular_speed_radps', 'turn_side_offset_m',
                      'turn_side_memory_s', 'corner_search_angle_deg',
                      'corner_search_angular_speed_radps',
-                     'line_end_stop_short_m'):
+                     'line_end_stop_short_m', 'trail_length_m', 'trail_tolerance_m'):
             _check_number(name, getattr(self, name))
         for name in ('confidence_for_full_speed', 'max_lateral_acceleration_mps2',
                      'max_linear_acceleration_mps2',
@@ -319,7 +337,7 @@ class RememberedRoute:
     frame), which a real base follows only after a lag; the points are kept in that frame and
     given back in the robot's. A sighting is put on the floor only
     when the route is asked for: every frame that sees the line replaces it, and few are
-    ever driven.
+    ever driven. The robot's own path (its trail) is kept too.
     """
 
     def __init__(self):
@@ -327,6 +345,8 @@ class RememberedRoute:
         self._pose = (0.0, 0.0, 0.0)
         # The pose measured at the last step (in the measuring frame), or None.
         self._measured_pose = None
+        # Where the robot has been, oldest first, TRAIL_SPACING_M apart.
+        self._trail = collections.deque([(0.0, 0.0)], maxlen=MAX_TRAIL_POINTS)
         # The last sighting as (pose, points in the robot's frame), until put on the floor.
         self._sighting = None
         self._points = np.empty((0, 2))
@@ -347,6 +367,31 @@ class RememberedRoute:
         else:
             self._pose = arc_pose(self._pose, command.linear_mps, command.angular_radps, dt_s)
         self._measured_pose = measured_pose
+        last_x_m, last_y_m = self._trail[-1]
+        if math.hypot(self._pose[0] - last_x_m, self._pose[1] - last_y_m) >= TRAIL_SPACING_M:
+            self._trail.append(self._pose[:2])
+
+    def on_trail(self, floor_xy_m, length_m, tolerance_m):
+        """
+        Tell whether a line lies where the robot has just been: the way it came.
+
+        :param floor_xy_m: (n, 2) floor points of the line in the robot's frame.
+        :param length_m: how much of the robot's latest path counts.
+        :param tolerance_m: how near a point must be to that path to lie on it.
+        :return: True when at least WAY_BACK_SHARE of the points lie on it.
+        """
+        count = min(len(self._trail), int(length_m / TRAIL_SPACING_M) + 1)
+        points = np.asarray(floor_xy_m, dtype=float).reshape(-1, 2)
+        if count < 2 or len(points) == 0 or tolerance_m <= 0.0:
+            return False
+        trail = np.array(self._trail)[-count:]
+        x_m, y_m, yaw_rad = self._pose
+        cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+        on_floor = np.stack((x_m + cos_yaw * points[:, 0] - sin_yaw * points[:, 1],
+                             y_m + sin_yaw * points[:, 0] + cos_yaw * points[:, 1]), axis=1)
+        distances = np.hypot(on_floor[:, None, 0] - trail[None, :, 0],
+                             on_floor[:, None, 1] - trail[None, :, 1]).min(axis=1)
+        return bool(np.mean(distances <= tolerance_m) >= WAY_BACK_SHARE)
 
     def remember(self, floor_xy_m):
         """
@@ -458,7 +503,7 @@ class LineFollowingController:
         self._last_side = 0
         self._turn_side = 0
         self._turn_seen_s = -math.inf
-        self._corner_search_turned_rad = 0.0
+        self._corner_search_turned_rad = self._corner_search_net_rad = 0.0
         self._seen_streak = 0
         self._last_seen_s = -math.inf
         self._end_in_view = False
@@ -499,7 +544,11 @@ class LineFollowingController:
         self._coasting_along = None
         target = None
         if detection.found and (config.steering_law == 'proportional'
-                                or (floor_xy_m is not None and len(floor_xy_m) > 0)):
+                                or (floor_xy_m is not None and len(floor_xy_m) > 0)) and not (
+                self._state in (STATE_ACQUIRING, STATE_LOST, STATE_LINE_END)
+                and config.steering_law == 'path'
+                and self._route.on_trail(floor_xy_m, config.trail_length_m,
+                                         config.trail_tolerance_m)):
             self._seen_streak += 1
             trusted = (self._state in (STATE_TRACKING, STATE_COASTING)
                        or self._seen_streak >= config.frames_to_trust)
@@ -515,7 +564,7 @@ class LineFollowingController:
                     self._route.remember(floor_xy_m)
                 self._last_side = _sign(target.angular_radps) or self._last_side
                 self._remember_turn_side(floor_xy_m, time_s)
-                self._corner_search_turned_rad = 0.0
+                self._corner_search_turned_rad = self._corner_search_net_rad = 0.0
             else:
                 self._state = STATE_ACQUIRING
         else:
@@ -609,13 +658,22 @@ class LineFollowingController:
     def _lost_line_target(self, dt_s):
         config = self._config
         turn_side = self._recent_turn_side()
-        if config.lost_line_behaviour == 'search' and self._state == STATE_LINE_END and (
-                turn_side and self._corner_search_turned_rad
-                < math.radians(config.corner_search_angle_deg)):
+        if config.lost_line_behaviour == 'search' and self._state == STATE_LINE_END and turn_side:
             # The line that ended right after turning away to a side may go on round a corner
-            # sharper than the camera can see: look there once before standing still.
+            # sharper than the camera can see: look there once, then turn back to face where
+            # it ended (something may stand on it there), and stand still.
             self._corner_search_turned_rad += abs(self._command.angular_radps) * dt_s
-            return VelocityCommand(0.0, turn_side * config.corner_search_angular_speed_radps)
+            self._corner_search_net_rad += turn_side * self._command.angular_radps * dt_s
+            speed_radps = config.corner_search_angular_speed_radps
+            if self._corner_search_turned_rad < math.radians(config.corner_search_angle_deg):
+                return VelocityCommand(0.0, turn_side * speed_radps)
+            if self._corner_search_net_rad > FACING_TOLERANCE_RAD:
+                # Slowing within the acceleration limit to stop facing where it ended: a
+                # frame at this rate, then braking, covers what is left.
+                net_rad = self._corner_search_net_rad
+                braking = config.max_angular_acceleration_radps2
+                return VelocityCommand(0.0, -turn_side * min(speed_radps, braking * (
+                    math.sqrt(dt_s * dt_s + 2.0 * net_rad / braking) - dt_s)))
         if (config.lost_line_behaviour == 'stop'
                 or self._state in (STATE_WAITING, STATE_LINE_END)):
             return self.stop_command()

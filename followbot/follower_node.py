@@ -151,6 +151,11 @@ CONTROLLER_PARAMETERS = {
                               'the line end ahead, it drives on along the line last seen (by '
                               'dead reckoning: odometry, else its commands) and stops this far '
                               'short of its end, before stopping or searching there.'),
+    'trail_length_m': (0.0, 8.0, "Path law: how much of the robot's own latest path (by dead "
+                       'reckoning) counts as the way it came: a line found while searching '
+                       'that lies along it is the way back, not taken.'),
+    'trail_tolerance_m': (0.0, 1.0, 'Path law: how near that path a found line must lie, '
+                          'most of its points, to be the way back; 0 takes any line found.'),
 }
 # Where the camera is on the robot: the path law needs it to put image points on the floor.
 # The defaults are the simulated TurtleBot 2's Kinect (followbot_sim's camera_pitch_deg).

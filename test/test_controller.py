@@ -1128,22 +1128,29 @@ def test_stops_without_turning_at_a_line_it_saw_end(
 
 
 @pytest.mark.parametrize('side', (LEFT, RIGHT))
-def test_looks_round_a_sharp_corner_then_stops_at_the_line_end(side):
+def test_looks_round_a_sharp_corner_then_turns_back_and_stops_at_the_line_end(side):
     config = ControllerConfig(line_memory_s=0.1)
     controller, time_s = tracking_controller(config, seen(), points_turning_away(side))
     frames = approach_the_end(controller, time_s)
     looking = [frame for frame in frames[coasting_frames(frames):]
                if frame.command != VelocityCommand(0.0, 0.0)]
-    # In place, toward the side the line turned away to, about as far as told; then still.
     assert all(frame.state == 'line end' and frame.command.linear_mps == 0.0
-               and frame.command.angular_radps * side > 0.0 for frame in looking)
-    turned_rad = sum(abs(frame.command.angular_radps) for frame in looking) * FRAME_PERIOD_S
-    # Give or take a frame or two at the search speed and the slowing down to a stop.
+               for frame in looking)
+    # In place, toward the side the line turned away to, about as far as told; then back to
+    # face where the line ended, and still.
+    toward = next(index for index, frame in enumerate(looking)
+                  if frame.command.angular_radps * side < 0.0)
+    turned_rad = sum(frame.command.angular_radps for frame in looking[:toward]) * (
+        side * FRAME_PERIOD_S)
+    # Give or take a frame or two at the search speed and the slowing down to turn back.
     speed_radps = config.corner_search_angular_speed_radps
     assert turned_rad == pytest.approx(
         math.radians(config.corner_search_angle_deg),
         abs=speed_radps * (2 * FRAME_PERIOD_S
                            + speed_radps / config.max_angular_acceleration_radps2))
+    assert all(frame.command.angular_radps * side < 0.0 for frame in looking[toward:])
+    net_rad = sum(frame.command.angular_radps for frame in looking) * FRAME_PERIOD_S
+    assert net_rad == pytest.approx(0.0, abs=0.05)
     assert frames[-1] == Frame(VelocityCommand(0.0, 0.0), 'line end')
 
 
@@ -1259,6 +1266,21 @@ def test_a_step_without_a_measured_pose_is_driven_by_the_command_and_not_counted
     # step is the command's 0.5 m too.
     route.advance(VelocityCommand(1.0, 0.0), 0.5, (10.0, 10.0, 1.0))
     np.testing.assert_allclose(route.ahead(0.0), [(0.75, 0.0)], atol=1e-12)
+
+
+def test_a_line_along_the_path_just_driven_is_on_the_trail():
+    route = RememberedRoute()
+    for _ in range(50):
+        route.advance(VelocityCommand(0.5, 0.0), 0.05)
+    # 1.25 m straight on, then turned round in place: the way back lies ahead.
+    route.advance(VelocityCommand(0.0, math.pi), 1.0)
+    way_back = [(0.35, 0.0), (0.6, 0.02), (0.85, -0.03)]
+    assert route.on_trail(way_back, 2.0, 0.1)
+    # A line beside it, as a hairpin's other leg 0.3 m away, is not.
+    assert not route.on_trail([(x_m, 0.3) for x_m, _ in way_back], 2.0, 0.1)
+    # Nor is the path driven longer ago than counts, nor anything when told so.
+    assert not route.on_trail([(1.1, 0.0), (1.2, 0.0)], 0.5, 0.1)
+    assert not route.on_trail(way_back, 2.0, 0.0)
 
 
 def test_poses_compose_with_their_relative_moves_and_arcs():
@@ -1390,6 +1412,30 @@ def test_a_base_that_lags_its_commands_is_driven_to_a_line_end_by_odometry(with_
         assert travelled_m == pytest.approx(end_m, abs=config.linear_speed_mps * FRAME_PERIOD_S)
     else:
         assert travelled_m < 0.7 * end_m
+
+
+@pytest.mark.parametrize('trail_tolerance_m, followed', ((0.1, False), (0.0, True)))
+def test_a_lost_line_found_again_along_the_way_it_came_is_not_followed_back(
+        trail_tolerance_m, followed):
+    # Lost after following a straight line (driven on along it, then searching), the robot has
+    # turned round: the line now seen straight ahead is the one it drove along.
+    config = ControllerConfig(trail_tolerance_m=trail_tolerance_m)
+    controller, time_s = tracking_controller(config, seen(), STRAIGHT_AHEAD_M)
+    # Each command is driven until the next frame: the last is not driven yet.
+    turned_rad = -math.pi
+    while turned_rad < 0.0:
+        time_s += FRAME_PERIOD_S
+        command = controller.update(nothing_seen(), time_s, None)
+        assert command.linear_mps > 0.0 or controller.state == 'lost'
+        turned_rad += command.angular_radps * FRAME_PERIOD_S
+    start_s = time_s + FRAME_PERIOD_S
+    # Seen for long enough to be trusted (the robot turning on meanwhile: not for long).
+    way_back = np.array([(0.35, 0.0), (0.5, 0.0), (0.65, 0.0)])
+    frames = drive(controller, seen(seen_count=3), way_back, config.frames_to_trust + 1,
+                   start_s=start_s)
+    assert (frames[-1].state == 'tracking') == followed
+    if not followed:
+        assert frames[-1].state == 'lost' and frames[-1].command.linear_mps == 0.0
 
 
 def test_the_proportional_law_coasts_on_its_last_command_at_a_line_end():
