@@ -101,6 +101,14 @@ class Harness(NodeHarness):
         self.spin_until(lambda: len(self.cmd_vels) > count)
         return self.cmd_vels[-1]
 
+    def only_error(self) -> str:
+        """Wait for the follower to log an error, give it time to log more; return the only one."""
+        self.spin_until(lambda: self.errors, timeout_s=2.0)
+        for _ in range(20):
+            self.executor.spin_once(timeout_sec=0.01)
+        assert len(self.errors) == 1, self.errors
+        return self.errors[0]
+
     def send_many(self, line_column_px, frames=SETTLING_FRAMES):
         """Publish frames of a line at a column; return the last command."""
         for _ in range(frames):
