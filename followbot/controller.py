@@ -28,10 +28,9 @@ the end of the line, until the line comes back into view. Where the line ended i
 saw the end (path law): the camera sees the floor only from some way ahead, so the last frame
 that saw the line showed its end still that far off. It follows the line's floor points of that
 frame, kept where they lay on the floor by dead reckoning (odometry, else its own commands),
-and stops
-``line_end_stop_short_m`` before their end. A line that turned away to a side just before it
-ended may go on round a corner too sharp for the camera (a hairpin whose turn leaves the view at
-its bottom edge, a 120-degree corner), so the searching robot first turns up to
+and stops ``line_end_stop_short_m`` before their end. A line that turned away to a side just
+before it ended may go on round a corner too sharp for the camera (a hairpin whose turn leaves
+the view at its bottom edge, a 120-degree corner), so the searching robot first turns up to
 ``corner_search_angle_deg`` towards that side (at ``corner_search_angular_speed_radps``: the
 corner was seen, so faster than a search for a line lost anywhere), turns back to face where
 the line ended, and stops there. A line found while searching that lies where the robot has just
@@ -313,6 +312,20 @@ def relative_pose(start, end):
             math.remainder(end[2] - start[2], math.tau))
 
 
+def floor_points(pose, points_m):
+    """
+    Return points given in a robot's frame in the frame its pose is given in.
+
+    :param pose: the robot's ``(x_m, y_m, yaw_rad)``.
+    :param points_m: an (n, 2) array of (x forward, y left) points in the robot's frame.
+    :return: an (n, 2) array.
+    """
+    x_m, y_m, yaw_rad = pose
+    cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+    return np.stack((x_m + cos_yaw * points_m[:, 0] - sin_yaw * points_m[:, 1],
+                     y_m + sin_yaw * points_m[:, 0] + cos_yaw * points_m[:, 1]), axis=1)
+
+
 def compose_poses(pose, move):
     """
     Return where a planar pose ends after a move given in its own frame.
@@ -335,9 +348,9 @@ class RememberedRoute:
     started, from the change of a measured pose (wheel odometry) where one is given at two
     steps in a row, and otherwise from the commands it was given (each held until the next
     frame), which a real base follows only after a lag; the points are kept in that frame and
-    given back in the robot's. A sighting is put on the floor only
-    when the route is asked for: every frame that sees the line replaces it, and few are
-    ever driven. The robot's own path (its trail) is kept too.
+    given back in the robot's. A sighting is put on the floor only when the route is asked
+    for: every frame that sees the line replaces it, and few are ever driven. The robot's own
+    path (its trail) is kept too.
     """
 
     def __init__(self):
@@ -385,10 +398,7 @@ class RememberedRoute:
         if count < 2 or len(points) == 0 or tolerance_m <= 0.0:
             return False
         trail = np.array(self._trail)[-count:]
-        x_m, y_m, yaw_rad = self._pose
-        cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
-        on_floor = np.stack((x_m + cos_yaw * points[:, 0] - sin_yaw * points[:, 1],
-                             y_m + sin_yaw * points[:, 0] + cos_yaw * points[:, 1]), axis=1)
+        on_floor = floor_points(self._pose, points)
         distances = np.hypot(on_floor[:, None, 0] - trail[None, :, 0],
                              on_floor[:, None, 1] - trail[None, :, 1]).min(axis=1)
         return bool(np.mean(distances <= tolerance_m) >= WAY_BACK_SHARE)
@@ -410,11 +420,7 @@ class RememberedRoute:
     def _floor_points(self):
         """Return the route's points in the floor frame, putting a new sighting there first."""
         if self._sighting is not None:
-            (x_m, y_m, yaw_rad), points = self._sighting
-            cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
-            self._points = np.stack(
-                (x_m + cos_yaw * points[:, 0] - sin_yaw * points[:, 1],
-                 y_m + sin_yaw * points[:, 0] + cos_yaw * points[:, 1]), axis=1)
+            self._points = floor_points(*self._sighting)
             self._sighting = None
         return self._points
 
