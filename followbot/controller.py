@@ -56,6 +56,11 @@ MAX_TRAIL_POINTS = 400
 # the robot's path.
 WAY_BACK_SHARE = 0.5
 
+# An odometry move faster than this between two frames is no move of a line-following base but
+# a jump (odometry reset, a glitch): that step is driven by the command instead.
+ODOMETRY_JUMP_MPS = 5.0
+ODOMETRY_JUMP_RADPS = 20.0
+
 # Turned back to within this of facing where the line ended is facing it.
 FACING_TOLERANCE_RAD = 1e-3
 
@@ -295,7 +300,9 @@ def arc_pose(pose, linear_mps, angular_radps, dt_s):
         radius_m = distance_m / turn_rad
         x_m += radius_m * (math.sin(yaw_rad + turn_rad) - math.sin(yaw_rad))
         y_m -= radius_m * (math.cos(yaw_rad + turn_rad) - math.cos(yaw_rad))
-    return (x_m, y_m, math.remainder(yaw_rad + turn_rad, math.tau))
+    yaw_rad += turn_rad
+    # An infinite turn (from absurd odometry) gives NaN, as the other figures do, not an error.
+    return (x_m, y_m, math.remainder(yaw_rad, math.tau) if math.isfinite(yaw_rad) else math.nan)
 
 
 def relative_pose(start, end):
@@ -372,11 +379,15 @@ class RememberedRoute:
         :param dt_s: how long it drove it, in seconds.
         :param measured_pose: the robot's ``(x_m, y_m, yaw_rad)`` now in a frame of its own
             (odometry's), or None. The robot moves by the change since the last measured pose
-            when there was one at the last step; otherwise by the command, as an arc.
+            when there was one at the last step and the change is one a base can make in the
+            time (ODOMETRY_JUMP_MPS, ODOMETRY_JUMP_RADPS); otherwise by the command, as an arc.
         """
-        if measured_pose is not None and self._measured_pose is not None:
-            self._pose = compose_poses(self._pose, relative_pose(self._measured_pose,
-                                                                 measured_pose))
+        move = (relative_pose(self._measured_pose, measured_pose)
+                if measured_pose is not None and self._measured_pose is not None else None)
+        # Written so that a NaN fails it too.
+        if move is not None and (math.hypot(move[0], move[1]) <= ODOMETRY_JUMP_MPS * dt_s
+                                 and abs(move[2]) <= ODOMETRY_JUMP_RADPS * dt_s):
+            self._pose = compose_poses(self._pose, move)
         else:
             self._pose = arc_pose(self._pose, command.linear_mps, command.angular_radps, dt_s)
         self._measured_pose = measured_pose

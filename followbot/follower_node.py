@@ -1,5 +1,5 @@
 """
-The follower node: camera image in, ``cmd_vel`` out.
+The follower node: camera image in, ``cmd_vel`` out (and the base's ``odom``, when it has one).
 
 Wires :mod:`followbot.image_conversion`, :mod:`followbot.line_detector`,
 :mod:`followbot.ground_projection` and :mod:`followbot.controller` to ROS. Every tunable number
@@ -405,7 +405,8 @@ class FollowerNode(Node):
         if abs(time_s - stamp_s) > timeout_s:
             return None
         # Odometry comes at its own rate: carried on its twist to the frame's time.
-        return arc_pose(pose, linear_mps, angular_radps, time_s - stamp_s)
+        pose = arc_pose(pose, linear_mps, angular_radps, time_s - stamp_s)
+        return pose if all(math.isfinite(value) for value in pose) else None
 
     def _subscribe_to_images(self, transport: str):
         """Subscribe to the camera's raw or compressed images, named as image_transport does."""

@@ -1283,6 +1283,20 @@ def test_a_line_along_the_path_just_driven_is_on_the_trail():
     assert not route.on_trail(way_back, 2.0, 0.0)
 
 
+@pytest.mark.parametrize('jump', ((1e6, 0.0, 0.0), (0.0, 0.0, 3.0), (math.nan, 0.0, 0.0)))
+def test_an_odometry_jump_is_driven_by_the_command_and_only_resets_the_reference(jump):
+    # A reset odometry or a glitch moves the pose further in a frame than any base goes.
+    route = RememberedRoute()
+    route.remember([(2.0, 0.0)])
+    route.advance(VelocityCommand(1.0, 0.0), 0.0, (0.0, 0.0, 0.0))
+    route.advance(VelocityCommand(1.0, 0.0), 0.05, jump)
+    np.testing.assert_allclose(route.ahead(0.0), [(1.95, 0.0)], atol=1e-12)
+    # Measured moves from the new reference count again.
+    route.advance(VelocityCommand(1.0, 0.0), 0.05, compose_poses(jump, (0.01, 0.0, 0.0)))
+    if math.isfinite(jump[0]):
+        np.testing.assert_allclose(route.ahead(0.0), [(1.94, 0.0)], atol=1e-9)
+
+
 def test_poses_compose_with_their_relative_moves_and_arcs():
     start = (1.0, 2.0, 3.0)
     end = arc_pose(start, 0.4, -1.3, 0.7)

@@ -10,14 +10,16 @@ for a longer run).
 import math
 
 from conftest import SimHarness
+from followbot import messages
 from followbot.controller import ControllerConfig
 from followbot.follower_node import FOLLOWER_PARAMETERS, FollowerSettings
 from followbot.image_conversion import image_to_array, ImageConversionError
 from followbot_sim.diff_drive import KOBUKI_MAX_ANGULAR_SPEED_RADPS, KOBUKI_MAX_LINEAR_SPEED_MPS
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS
-from follower_harness import camera_frame, camera_info, Harness, WIDTH_PX
+from follower_harness import camera_frame, camera_info, FRAME_PERIOD_S, Harness, WIDTH_PX
 from geometry_msgs.msg import Twist, TwistStamped, Vector3
 from hypothesis import given, strategies
+from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import CameraInfo, Image
@@ -78,6 +80,20 @@ def camera_infos(draw):
     return info
 
 
+@strategies.composite
+def odometries(draw):
+    """Draw an Odometry: any pose, orientation, twist and stamp, sane or not."""
+    msg = Odometry()
+    msg.header.stamp.sec = draw(strategies.integers(0, 2 ** 31 - 1) | strategies.just(1))
+    msg.header.stamp.nanosec = draw(strategies.integers(0, 999_999_999))
+    pose = msg.pose.pose
+    pose.position.x, pose.position.y = draw(ANY_FLOAT), draw(ANY_FLOAT)
+    (pose.orientation.x, pose.orientation.y, pose.orientation.z,
+     pose.orientation.w) = (draw(ANY_FLOAT) for _ in range(4))
+    msg.twist.twist.linear.x, msg.twist.twist.angular.z = draw(ANY_FLOAT), draw(ANY_FLOAT)
+    return msg
+
+
 def readable(msg: Image) -> bool:
     """Tell whether the follower could read a frame's pixels at all."""
     try:
@@ -130,6 +146,36 @@ def test_follower_survives_any_camera_info(ros_context):
         send_any_camera_info()
         harness.camera_infos.publish(camera_info())
         harness.spin_until(lambda: harness.send(camera_frame(CENTRE_PX)).linear.x > 0.0)
+    finally:
+        harness.close()
+
+
+def test_follower_survives_any_odometry(ros_context):
+    # The frames show a line ending ahead, then none: the follower drives on to the end by
+    # odometry when it can use it.
+    harness = Harness(ros_context)
+    publisher = harness.client.create_publisher(Odometry, 'odom', 10)
+    harness.spin_until(lambda: publisher.get_subscription_count() > 0)
+    frames = [camera_frame(CENTRE_PX), camera_frame(CENTRE_PX, line_top_px=240),
+              camera_frame(None), camera_frame(None)]
+
+    # Each message may be stamped near its frame (then it is used), or anywhere.
+    near_offsets_s = strategies.none() | strategies.floats(-0.6, 0.6)
+
+    @given(msgs=strategies.lists(strategies.tuples(odometries(), near_offsets_s),
+                                 min_size=len(frames), max_size=len(frames)))
+    def send_any_odometry(msgs):
+        for (msg, offset_s), frame in zip(msgs, frames):
+            if offset_s is not None:
+                msg.header.stamp = messages.stamp(harness.time_s + FRAME_PERIOD_S + offset_s)
+            taken = harness.follower.odometry_messages
+            publisher.publish(msg)
+            harness.spin_until(lambda: harness.follower.odometry_messages > taken)
+            assert_safe(harness.send(frame), harness.follower._settings)
+
+    try:
+        send_any_odometry()
+        assert harness.send_many(CENTRE_PX).linear.x > 0.0
     finally:
         harness.close()
 
