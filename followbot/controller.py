@@ -560,12 +560,14 @@ class LineFollowingController:
         self._time_s = time_s
         self._coasting_along = None
         target = None
-        if detection.found and (config.steering_law == 'proportional'
-                                or (floor_xy_m is not None and len(floor_xy_m) > 0)) and not (
-                self._state in (STATE_ACQUIRING, STATE_LOST, STATE_LINE_END)
-                and config.steering_law == 'path'
-                and self._route.on_trail(floor_xy_m, config.trail_length_m,
-                                         config.trail_tolerance_m)):
+        seen = detection.found and (config.steering_law == 'proportional'
+                                    or (floor_xy_m is not None and len(floor_xy_m) > 0))
+        if seen and config.steering_law == 'path' and self._state in (
+                STATE_ACQUIRING, STATE_LOST, STATE_LINE_END):
+            # Searching, a line along the robot's own path is the way back: not taken.
+            seen = not self._route.on_trail(floor_xy_m, config.trail_length_m,
+                                            config.trail_tolerance_m)
+        if seen:
             self._seen_streak += 1
             trusted = (self._state in (STATE_TRACKING, STATE_COASTING)
                        or self._seen_streak >= config.frames_to_trust)
