@@ -152,7 +152,7 @@ class RecordingPlan:
                     header_stamp_ns(message.data))
             elif message.type_name in COMMAND_TYPES:
                 commands.append(message)
-            elif message.type_name == ODOMETRY_TYPE:
+            elif message.type_name == ODOMETRY_TYPE and is_wheel_odometry(message.topic):
                 odometry.setdefault(message.topic, []).append(
                     (header_stamp_ns(message.data) or 0, message.data))
             elif message.type_name == CAMERA_INFO_TYPE:
@@ -216,9 +216,19 @@ def camera_info_topic(image_topic: str) -> str:
     :param image_topic: such as ``/camera/rgb/image_raw`` or ``.../image_raw/compressed``.
     :return: such as ``/camera/rgb/camera_info``.
     """
-    base = image_topic[:-len(COMPRESSED_SUFFIX)] if image_topic.endswith(COMPRESSED_SUFFIX) \
+    return _base_topic(image_topic).rsplit('/', 1)[0] + '/' + CAMERA_INFO_NAME
+
+
+def _base_topic(image_topic: str) -> str:
+    """Return an image topic without image_transport's ``/compressed`` suffix."""
+    return image_topic[:-len(COMPRESSED_SUFFIX)] if image_topic.endswith(COMPRESSED_SUFFIX) \
         else image_topic
-    return base.rsplit('/', 1)[0] + '/' + CAMERA_INFO_NAME
+
+
+def is_wheel_odometry(topic: str) -> bool:
+    """Tell whether an Odometry topic is a robot's wheel odometry (``.../odom``)."""
+    return (topic.rsplit('/', 1)[-1] == ODOMETRY_NAME
+            and not topic.endswith(GROUND_TRUTH_ODOMETRY_SUFFIX))
 
 
 def odometry_topic(image_topic: str, topics: list) -> str | None:
@@ -229,10 +239,8 @@ def odometry_topic(image_topic: str, topics: list) -> str | None:
     :param topics: the recording's ``nav_msgs/Odometry`` topics.
     :return: the one in the camera's namespace (``/r1/odom``), else the only one, else None.
     """
-    wheel = [topic for topic in topics if topic.rsplit('/', 1)[-1] == ODOMETRY_NAME
-             and not topic.endswith(GROUND_TRUTH_ODOMETRY_SUFFIX)]
-    base = image_topic[:-len(COMPRESSED_SUFFIX)] if image_topic.endswith(COMPRESSED_SUFFIX) \
-        else image_topic
+    wheel = [topic for topic in topics if is_wheel_odometry(topic)]
+    base = _base_topic(image_topic)
     if base.endswith('/' + FOLLOWER_IMAGE_TOPIC):
         beside = base[:-len(FOLLOWER_IMAGE_TOPIC)] + ODOMETRY_NAME
         if beside in wheel:
