@@ -22,7 +22,8 @@ pixels form stripes; which stripe, if any, is the line is decided with what the 
   ``max_stripe_jump_m``, nor zigzag. Among all chains of stripes through the bands, the one
   with the most well-coloured, well-sized stripes and the smoothest path is taken (dynamic
   programming over the bands). A stripe that stood in a band in the previous frame's reported
-  line must be near where it was (``max_stripe_jump_m`` on the floor).
+  line must be near where it was (``max_stripe_jump_m`` on the floor); there, a line leaving
+  the image at its side (into a sharp corner) is still seen however little of it shows.
 - **How sure.** The detection's confidence is the share of the searchable bands that its
   chain covers, each weighed by how well its stripe's width and colour fit, lowered when
   another chain of similar strength competes. A lone yellow object, a half-matching stripe,
@@ -747,7 +748,13 @@ class LineDetector:
             if len(stripes) > 1:
                 stripes = _joined(stripes, plan.split_gap_px[index])
             for start, end, area, x_moment, y_moment in stripes:
-                if area < plan.min_area_px[index]:
+                # A line the band saw a frame ago, leaving the image at its side (into a sharp
+                # corner), shows less and less of itself there: it is still the line, however
+                # little shows (the jump limit below keeps it where the line was). Seen for
+                # the first time, such a sliver at the edge may be anything.
+                if area < plan.min_area_px[index] and not (
+                        (start == 0 or end == image_width)
+                        and self._previous_points[index] is not None):
                     continue
                 quality = self._stripe_quality(index, start, end, area, rows, plan,
                                                strength_sums)

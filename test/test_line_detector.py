@@ -885,6 +885,28 @@ def test_bands_a_line_leaving_the_view_at_the_side_cannot_reach_count_less_again
     assert detection.confidence > sum(seen) / len(seen)
 
 
+def test_a_followed_line_leaving_at_the_side_stays_seen_however_little_shows():
+    # Into a square corner the line slides out of the image's side: in the third band only a
+    # sliver of it is left at the edge, a few pixels wide.
+    heading_rad = math.radians(70.0)
+
+    def corner(lateral_m):
+        line = scenes.straight_line(lateral_m=lateral_m, heading_rad=heading_rad)
+        return scenes.scene([line])
+
+    detector = LineDetector()
+    before = detector.detect(corner(-0.78), 'bgr8', scenes.KINECT)
+    assert before.bands[2].found and before.bands[2].at_side
+    after = detector.detect(corner(-0.74), 'bgr8', scenes.KINECT)
+    first_sight = LineDetector().detect(corner(-0.74), 'bgr8', scenes.KINECT)
+    # The robot following it still sees it there; at first sight a sliver at the edge is
+    # too little to be sure of.
+    assert after.bands[2].found and after.bands[2].at_side
+    assert after.bands[2].centroid_x_px < before.bands[2].centroid_x_px
+    assert not first_sight.bands[2].found
+    assert after.confidence > first_sight.confidence
+
+
 def test_bands_beyond_a_line_ending_in_view_count_against_it():
     # The same bands see nothing, but the line ends in the middle of the view: it may be
     # anything, as far as those bands tell.
