@@ -44,8 +44,11 @@ class TopicRecorder:
         self.cmd_vels = []
         # Reliable, like the publishers (REP-2003): the test counts every frame published.
         node.create_subscription(Image, 'camera/rgb/image_raw', self.images.append, 50)
+        # A reader keeps its last N only: a stall of this test's spinning on a loaded machine
+        # drops the oldest unread messages. The small camera_info keeps twenty times as many as
+        # the images, so no image it holds has lost its camera_info.
         node.create_subscription(CameraInfo, 'camera/rgb/camera_info',
-                                 self.camera_infos.append, 50)
+                                 self.camera_infos.append, 1000)
         node.create_subscription(Clock, '/clock', self.clocks.append, 100)
         node.create_subscription(Twist, 'cmd_vel', self.cmd_vels.append, 10)
 
