@@ -748,13 +748,13 @@ class LineDetector:
             if len(stripes) > 1:
                 stripes = _joined(stripes, plan.split_gap_px[index])
             for start, end, area, x_moment, y_moment in stripes:
+                at_side = start == 0 or end == image_width
                 # A line the band saw a frame ago, leaving the image at its side (into a sharp
                 # corner), shows less and less of itself there: it is still the line, however
                 # little shows (the jump limit below keeps it where the line was). Seen for
                 # the first time, such a sliver at the edge may be anything.
                 if area < plan.min_area_px[index] and not (
-                        (start == 0 or end == image_width)
-                        and self._previous_points[index] is not None):
+                        at_side and self._previous_points[index] is not None):
                     continue
                 quality = self._stripe_quality(index, start, end, area, rows, plan,
                                                strength_sums)
@@ -770,7 +770,7 @@ class LineDetector:
                         found.append((index, x_px, y_px, area, float(quality), at_side))
                     continue
                 found.append((index, start + (x_moment - start * area) / area, y_px, area,
-                              float(quality), start == 0 or end == image_width))
+                              float(quality), at_side))
         if not found:
             return [[] for _ in self._bands]
         points = self._points([item[1] for item in found], [item[2] for item in found],
