@@ -23,7 +23,8 @@ pixels form stripes; which stripe, if any, is the line is decided with what the 
   with the most well-coloured, well-sized stripes and the smoothest path is taken (dynamic
   programming over the bands). A stripe that stood in a band in the previous frame's reported
   line must be near where it was (``max_stripe_jump_m`` on the floor); there, a line leaving
-  the image at its side (into a sharp corner) is still seen however little of it shows.
+  the image at its side (into a sharp corner) is still seen however little of it shows, as is
+  a sliver at the side the nearer band's stripe reaches (the line running on out of the image).
 - **How sure.** The detection's confidence is the share of the searchable bands that its
   chain covers, each weighed by how well its stripe's width and colour fit, lowered when
   another chain of similar strength competes. A lone yellow object, a half-matching stripe,
@@ -738,9 +739,13 @@ class LineDetector:
             strength_sums = self._strength.reshape(count, rows, width).sum(axis=1)
         image_width = self._image_shape[1]
         found = []
+        # Whether the nearer band's stripes reach the image's left side, and its right side.
+        nearer_reach = (False, False)
         for index, stripes in enumerate(stripes_by_band):
             if stripes is None or not plan.searched[index]:
+                nearer_reach = (False, False)
                 continue
+            reach_left = reach_right = False
             top = self._bands[index][0]
             rows = rows_of[index]
             if isinstance(stripes, np.ndarray):
@@ -748,18 +753,22 @@ class LineDetector:
             if len(stripes) > 1:
                 stripes = _joined(stripes, plan.split_gap_px[index])
             for start, end, area, x_moment, y_moment in stripes:
-                at_side = start == 0 or end == image_width
-                # A line the band saw a frame ago, leaving the image at its side (into a sharp
-                # corner), shows less and less of itself there: it is still the line, however
-                # little shows (the jump limit below keeps it where the line was). Seen for
-                # the first time, such a sliver at the edge may be anything.
+                at_left, at_right = start == 0, end == image_width
+                at_side = at_left or at_right
+                # A line leaving the image at its side (into a sharp corner, or coming into
+                # view out of one) shows less and less of itself there. A sliver at the edge
+                # is still the line where the band saw the line a frame ago (the jump limit
+                # below keeps it where it was), or where the nearer band's stripe reaches the
+                # same side (the line runs on out of the image); alone, it may be anything.
                 if area < plan.min_area_px[index] and not (
-                        at_side and self._previous_points[index] is not None):
+                        at_side and self._previous_points[index] is not None
+                        or at_left and nearer_reach[0] or at_right and nearer_reach[1]):
                     continue
                 quality = self._stripe_quality(index, start, end, area, rows, plan,
                                                strength_sums)
                 if quality < MIN_QUALITY:
                     continue
+                reach_left, reach_right = reach_left or at_left, reach_right or at_right
                 y_px = top + y_moment / area
                 if quality.along_band:
                     # The line runs through the band: where it enters and where it leaves are
@@ -771,6 +780,7 @@ class LineDetector:
                     continue
                 found.append((index, start + (x_moment - start * area) / area, y_px, area,
                               float(quality), at_side))
+            nearer_reach = (reach_left, reach_right)
         if not found:
             return [[] for _ in self._bands]
         points = self._points([item[1] for item in found], [item[2] for item in found],

@@ -885,26 +885,39 @@ def test_bands_a_line_leaving_the_view_at_the_side_cannot_reach_count_less_again
     assert detection.confidence > sum(seen) / len(seen)
 
 
+def _corner_view(lateral_m):
+    """Return a view into a square corner: the line slides out of the image's left side."""
+    line = scenes.straight_line(lateral_m=lateral_m, heading_rad=math.radians(70.0))
+    return scenes.scene([line])
+
+
 def test_a_followed_line_leaving_at_the_side_stays_seen_however_little_shows():
-    # Into a square corner the line slides out of the image's side: in the third band only a
-    # sliver of it is left at the edge, a few pixels wide.
-    heading_rad = math.radians(70.0)
-
-    def corner(lateral_m):
-        line = scenes.straight_line(lateral_m=lateral_m, heading_rad=heading_rad)
-        return scenes.scene([line])
-
+    # In the third band only a sliver of the line is left at the edge, a few pixels wide.
     detector = LineDetector()
-    before = detector.detect(corner(-0.78), 'bgr8', scenes.KINECT)
+    before = detector.detect(_corner_view(-0.78), 'bgr8', scenes.KINECT)
     assert before.bands[2].found and before.bands[2].at_side
-    after = detector.detect(corner(-0.74), 'bgr8', scenes.KINECT)
-    first_sight = LineDetector().detect(corner(-0.74), 'bgr8', scenes.KINECT)
-    # The robot following it still sees it there; at first sight a sliver at the edge is
-    # too little to be sure of.
+    after = detector.detect(_corner_view(-0.74), 'bgr8', scenes.KINECT)
     assert after.bands[2].found and after.bands[2].at_side
     assert after.bands[2].centroid_x_px < before.bands[2].centroid_x_px
-    assert not first_sight.bands[2].found
-    assert after.confidence > first_sight.confidence
+    assert after.bands[2].area_px < before.bands[2].area_px
+
+
+def test_a_sliver_at_the_side_the_nearer_band_leaves_by_is_the_line_at_first_sight():
+    # Turning out of a corner the next leg comes into view at the image's side: the band
+    # beyond the nearer one, which reaches that side, shows a sliver of it.
+    first_sight = LineDetector().detect(_corner_view(-0.74), 'bgr8', scenes.KINECT)
+    assert first_sight.bands[1].at_side
+    assert first_sight.bands[2].found and first_sight.bands[2].at_side
+    assert first_sight.bands[2].centroid_x_px < first_sight.bands[1].centroid_x_px
+
+
+def test_a_lone_sliver_at_the_side_is_not_the_line_at_first_sight():
+    # The same sliver with nothing of the line below it may be anything at the edge.
+    image = _corner_view(-0.74)
+    below_px = LineDetector().detect(image, 'bgr8', scenes.KINECT).bands[2].bottom_px + 2
+    image[below_px:, :] = image[below_px:, -1:]
+    detection = LineDetector().detect(image, 'bgr8', scenes.KINECT)
+    assert not detection.found
 
 
 def test_bands_beyond_a_line_ending_in_view_count_against_it():
