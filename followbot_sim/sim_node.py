@@ -76,6 +76,13 @@ SIMULATOR_PARAMETERS = {
     'course': ParameterSpec(
         'book_loop', 'Course to load: a built-in name (see the README) or the path of a YAML '
         'course file.', read_only=True),
+    'start_lateral_offset_m': ParameterSpec(
+        0.0, 'Robots start this far left of the line at their starts (negative: right), as '
+        'if put down by hand: how much a run depends on exactly where it starts.', -0.25,
+        0.25, read_only=True),
+    'start_heading_offset_deg': ParameterSpec(
+        0.0, "Robots start turned this far left of the line's direction (negative: right).",
+        -45.0, 45.0, read_only=True),
     'lighting_zones': ParameterSpec(
         False, 'Add bright and dim zones along the line of the course.', read_only=True),
     'camera_noise_stddev_levels': ParameterSpec(
@@ -313,7 +320,9 @@ class SimulatorNode(Node):
             parameters['horizontal_fov_deg'], parameters['camera_pitch_deg'], limits=limits,
             camera_noise_stddev=parameters['camera_noise_stddev_levels'],
             noise_seed=parameters['random_seed'], robot_names=names,
-            robot_spacing_m=parameters['robot_spacing_m'], realism=realism)
+            robot_spacing_m=parameters['robot_spacing_m'], realism=realism,
+            start_lateral_offset_m=parameters['start_lateral_offset_m'],
+            start_heading_offset_deg=parameters['start_heading_offset_deg'])
         self._robots = [_Robot(index, name, parameters['command_timeout_s'], course, limits)
                         for index, name in enumerate(names)]
         for robot in self._robots:

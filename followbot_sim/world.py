@@ -161,7 +161,8 @@ class FollowbotWorld:
                  max_depth_m: float = DEFAULT_MAX_DEPTH_M,
                  robot_names: tuple[str, ...] = (SINGLE_ROBOT,),
                  robot_spacing_m: float = DEFAULT_ROBOT_SPACING_M,
-                 realism: Realism | None = None):
+                 realism: Realism | None = None, start_lateral_offset_m: float = 0.0,
+                 start_heading_offset_deg: float = 0.0):
         """
         Load the scene, paint the course on the floor and put the robot at the course start.
 
@@ -190,9 +191,14 @@ class FollowbotWorld:
         :param robot_spacing_m: centre-to-centre distance between robots along the line.
         :param realism: a world and camera drawn from a realism preset
             (:func:`followbot_sim.realism.realise`); None or ``clean`` keeps the ideal scene.
+        :param start_lateral_offset_m: the robots start this far to the left of the line
+            (negative: to the right) at their starts, as a robot put down by hand would.
+        :param start_heading_offset_deg: and turned this far to the left of the line's
+            direction (negative: to the right).
         :raises ValueError: for a non-positive image size, a field of view outside (0, 180),
-            a pitch outside [-90, 90], a negative or non-finite noise level, a negative seed or
-            a depth range that is not 0 <= min < max, or robots that do not fit the course.
+            a pitch outside [-90, 90], a negative or non-finite noise level, a negative seed,
+            a depth range that is not 0 <= min < max, robots that do not fit the course or a
+            start offset that is not finite.
         """
         if image_width_px <= 0 or image_height_px <= 0:
             raise ValueError(
@@ -210,6 +216,13 @@ class FollowbotWorld:
         if not 0.0 <= min_depth_m < max_depth_m:
             raise ValueError('The depth range must satisfy 0 <= min_depth_m < max_depth_m, got '
                              f'min_depth_m={min_depth_m}, max_depth_m={max_depth_m}.')
+        if not (math.isfinite(start_lateral_offset_m)
+                and math.isfinite(start_heading_offset_deg)):
+            raise ValueError('The start offset must be finite, got '
+                             f'start_lateral_offset_m={start_lateral_offset_m}, '
+                             f'start_heading_offset_deg={start_heading_offset_deg}.')
+        self._start_offset = (float(start_lateral_offset_m),
+                              math.radians(start_heading_offset_deg))
         if not robot_names or (SINGLE_ROBOT in robot_names and len(robot_names) > 1):
             raise ValueError(f'robot_names must be one unnamed robot or named robots, got '
                              f'{list(robot_names)}.')
@@ -491,6 +504,8 @@ class FollowbotWorld:
         """
         Put the robots at rest at their starts, the first at a pose if given, keeping the time.
 
+        The starts are the course's, moved by the world's start offset.
+
         The simulator's clock never goes backwards. The wheel angles are kept, as a real
         robot's encoders keep their counts when it is carried back: wheel odometry sees no
         motion (restart it if it should read the start).
@@ -506,8 +521,11 @@ class FollowbotWorld:
         self._place_robots(pose)
 
     def _place_robots(self, first_pose=None) -> None:
+        lateral_m, heading_rad = self._start_offset
         for parts, start_arc_m in zip(self._robots, self._start_arcs_m):
             x_m, y_m, yaw_rad = self._course.point_at(start_arc_m)
+            x_m, y_m, yaw_rad = (x_m - lateral_m * math.sin(yaw_rad),
+                                 y_m + lateral_m * math.cos(yaw_rad), yaw_rad + heading_rad)
             if first_pose is not None and parts is self._robots[0]:
                 x_m, y_m, yaw_rad = first_pose
             qpos = parts.free_joint_qpos

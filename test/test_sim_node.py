@@ -70,6 +70,8 @@ def test_run_duration_ends_the_run_at_that_simulated_time(ros_context):
     ('real_time_factor', -1.0),
     ('camera_rate_hz', 0.0),
     ('course', 'no_such_course'),
+    # A quarter of a metre is more than the line's width beside it.
+    ('start_lateral_offset_m', 0.3),
     # One step call may not hold the node for minutes.
     ('step_physics_steps', 1_000_000),
 ])

@@ -480,6 +480,24 @@ def test_robot_starts_at_course_start(world, course):
     assert world.robot_pose() == pytest.approx(course.start_pose())
 
 
+def test_a_start_offset_puts_the_robot_beside_the_line_turned_and_back_there(course):
+    world = FollowbotWorld(course, start_lateral_offset_m=0.02, start_heading_offset_deg=-3.0)
+    try:
+        x_m, y_m, yaw_rad = course.start_pose()
+        # 2 cm to the left of the line, turned 3 degrees to the right of it.
+        beside = (x_m - 0.02 * math.sin(yaw_rad), y_m + 0.02 * math.cos(yaw_rad),
+                  yaw_rad - math.radians(3.0))
+        assert world.robot_pose() == pytest.approx(beside)
+        world.set_twist(CRUISE_SPEED_MPS, 0.5)
+        world.step(1.0)
+        world.reset_robot()
+        assert world.robot_pose() == pytest.approx(beside)
+        world.reset()
+        assert world.robot_pose() == pytest.approx(beside)
+    finally:
+        world.close()
+
+
 def test_robot_starts_at_rest(world):
     assert world.time_s == 0.0
     assert world.robot_twist() == pytest.approx((0.0, 0.0))
@@ -637,6 +655,8 @@ def test_overview_shows_robot_on_the_start(shared_world, overview_image, course)
     {'horizontal_fov_deg': 180.0},
     {'camera_pitch_deg': 100.0},
     {'camera_pitch_deg': -100.0},
+    {'start_lateral_offset_m': math.nan},
+    {'start_heading_offset_deg': math.inf},
 ])
 def test_bad_arguments_are_rejected(course, arguments):
     with pytest.raises(ValueError):
