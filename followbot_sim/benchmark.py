@@ -113,12 +113,9 @@ def render_course_frames(frame_count: int, course_name: str = COURSE,
         frames_bgr = np.empty((frame_count, IMAGE_HEIGHT_PX, IMAGE_WIDTH_PX, 3), np.uint8)
         for index in range(frame_count):
             arc_m = course.length_m * index / frame_count
-            x_m, y_m, heading_rad = course.point_at(arc_m)
             phase = 2.0 * np.pi * arc_m / SWAY_WAVELENGTH_M
-            offset_m = SWAY_AMPLITUDE_M * np.sin(phase)
-            world.reset_robot((x_m - offset_m * np.sin(heading_rad),
-                               y_m + offset_m * np.cos(heading_rad),
-                               heading_rad + YAW_SWAY_RAD * np.cos(phase)))
+            x_m, y_m, heading_rad = course.point_at(arc_m, SWAY_AMPLITUDE_M * np.sin(phase))
+            world.reset_robot((x_m, y_m, heading_rad + YAW_SWAY_RAD * np.cos(phase)))
             cv2.cvtColor(world.render_camera(), cv2.COLOR_RGB2BGR, dst=frames_bgr[index])
         return frames_bgr, world.camera_intrinsics()
     finally:

@@ -542,15 +542,19 @@ class Course:
         """
         return self.point_at(0.0)
 
-    def point_at(self, arc_length_m):
+    def point_at(self, arc_length_m, offset_m=0.0):
         """
-        Return the point on the centre line at an arc length from the start.
+        Return the point on the centre line at an arc length from the start, or beside it.
 
         :param arc_length_m: arc length in metres, taken modulo the course length.
+        :param offset_m: distance from the centre line along its normal, positive to the left
+            of the direction of travel (as :meth:`signed_offset` measures it), in metres.
         :return: ``(x_m, y_m, heading_rad)``, the heading along the direction of travel.
         """
         points_xy, heading_rad = self._points_at(np.array([arc_length_m], dtype=float))
-        return float(points_xy[0, 0]), float(points_xy[0, 1]), float(heading_rad[0])
+        heading_rad = float(heading_rad[0])
+        return (float(points_xy[0, 0]) - offset_m * math.sin(heading_rad),
+                float(points_xy[0, 1]) + offset_m * math.cos(heading_rad), heading_rad)
 
     def _points_at(self, arc_length_m):
         """

@@ -457,10 +457,8 @@ def distractor_beside(course, arc_length_m, offset_m, length_m, width_m, yaw_rad
     :param yaw_rad: angle of the patch from the line's direction, counter-clockwise.
     :return: the :class:`Distractor`.
     """
-    x_m, y_m, heading_rad = course.point_at(arc_length_m)
-    return Distractor(x_m - offset_m * math.sin(heading_rad),
-                      y_m + offset_m * math.cos(heading_rad),
-                      length_m, width_m, heading_rad + yaw_rad)
+    x_m, y_m, heading_rad = course.point_at(arc_length_m, offset_m)
+    return Distractor(x_m, y_m, length_m, width_m, heading_rad + yaw_rad)
 
 
 def distractor():

@@ -523,9 +523,8 @@ class FollowbotWorld:
     def _place_robots(self, first_pose=None) -> None:
         lateral_m, heading_rad = self._start_offset
         for parts, start_arc_m in zip(self._robots, self._start_arcs_m):
-            x_m, y_m, yaw_rad = self._course.point_at(start_arc_m)
-            x_m, y_m, yaw_rad = (x_m - lateral_m * math.sin(yaw_rad),
-                                 y_m + lateral_m * math.cos(yaw_rad), yaw_rad + heading_rad)
+            x_m, y_m, yaw_rad = self._course.point_at(start_arc_m, lateral_m)
+            yaw_rad += heading_rad
             if first_pose is not None and parts is self._robots[0]:
                 x_m, y_m, yaw_rad = first_pose
             qpos = parts.free_joint_qpos

@@ -250,6 +250,16 @@ def test_point_at_walks_the_rectangle_and_wraps(arc_m, expected):
     assert angle_difference_rad(heading_rad, expected[2]) == pytest.approx(0.0, abs=1e-9)
 
 
+@pytest.mark.parametrize('offset_m', [0.05, -0.1])
+def test_point_at_an_offset_is_that_far_beside_the_line(offset_m):
+    # Going north up the rectangle's east side, left is west.
+    course = rectangle_course(1.0, 0.5)
+    x_m, y_m, heading_rad = course.point_at(0.25, offset_m)
+    assert (x_m, y_m) == pytest.approx((1.0 - offset_m, 0.25), abs=1e-9)
+    assert angle_difference_rad(heading_rad, math.pi / 2.0) == pytest.approx(0.0, abs=1e-9)
+    assert course.signed_offset(x_m, y_m) == pytest.approx((offset_m, 0.25), abs=1e-9)
+
+
 # --- nearest and signed_offset -----------------------------------------------------------------
 
 @pytest.mark.parametrize('arc_m', [0.0, 0.123, 3.3, 7.77, 12.5, 20.0])
