@@ -7,7 +7,9 @@ the robot completes a lap, runs out of simulated time or gets stuck. The simulat
 truth (its LapTracker) and the follower's line statistics give the figures: completion, lap
 time, mean speed, distance from the line, frames without the line, recoveries. Runs go to a
 pool of worker processes, each on its own ROS domain so concurrent runs never hear each other;
-the result is a Markdown table on stdout and a JSON file.
+the result is a Markdown table on stdout and a JSON file. A lockstep run is the same on every
+machine but not from a start a centimetre away: ``--starts N`` runs each pair from N starts
+and adds each figure's mean and range over them, to tell a change from chance.
 
 A configuration is a ROS 2 parameters file: ``followbot`` (the installed defaults) and ``book``
 (the book's controller) always exist, ``--params-file`` adds more. The whole file is given to
@@ -116,6 +118,14 @@ MISSING = '—'
 MAX_TABLE_ERROR_CHARS = 80
 # The table gives distances from the line in centimetres; the JSON keeps metres.
 CM_PER_M = 100.0
+# Where --starts puts the robot down: (start_lateral_offset_m, start_heading_offset_deg), as a
+# hand would, at most 2 cm beside and 1 degree turned from the course's start. The first is the
+# course's own start; --starts N runs the first N. A lockstep lap is the same on every machine
+# but not from a start a centimetre away: a change to the follower is told from chance by the
+# spread over these.
+STARTS = ((0.0, 0.0), (0.01, 0.0), (-0.01, 0.0), (0.02, 0.0), (-0.02, 0.0), (0.0, 1.0),
+          (0.0, -1.0), (0.01, 1.0))
+START_SIM_PARAMETERS = ('start_lateral_offset_m', 'start_heading_offset_deg')
 TABLE_COLUMNS = ('scenario', 'configuration', 'done %', 'lap s', 'mean m/s', 'RMS cm',
                  'max cm', 'off line s', 'lost frames', 'recoveries', 'end', 'wall s', '× book')
 
@@ -430,6 +440,8 @@ def perception_figures(tally) -> dict:
             'line_recall_percent': 100.0 * tally.line_recall}
 
 
+STARTS_TABLE_COLUMNS = ('scenario', 'configuration', 'laps', 'lap s', 'max cm', 'RMS cm',
+                        'lost frames %')
 REALISTIC_TABLE_COLUMNS = ('preset', 'course', 'seed', 'configuration', 'end', 'lap s',
                            'RMS cm', 'max cm', 'lost frames %', 'bands right %',
                            'false %', 'missed %', 'sim s / wall s')
@@ -449,6 +461,8 @@ def format_realistic_table(runs: list) -> str:
         metrics = run['metrics'] or {}
         perception = run['perception']
         preset, _, seed = run['scenario'].partition('@')[2].partition('#')
+        if run.get('starts', 1) > 1:
+            seed += f", start {run['start']}/{run['starts']}"
         rows.append([preset, run['course'], seed, run['configuration'], run['end_reason'],
                      number_cell(metrics.get('lap_time_s'), 1),
                      number_cell(metrics.get('rms_distance_from_line_m'), 1, CM_PER_M),
@@ -463,24 +477,76 @@ def format_realistic_table(runs: list) -> str:
     return markdown_table(REALISTIC_TABLE_COLUMNS, rows)
 
 
+def run_place(run: dict) -> tuple:
+    """Return where a run drove: its scenario and its start (1 unless ``--starts`` gave more)."""
+    return run['scenario'], run.get('start', 1)
+
+
+def run_label(run: dict) -> str:
+    """Return how the tables name a run's scenario: with its start when there were several."""
+    starts = run.get('starts', 1)
+    return run['scenario'] if starts == 1 else f"{run['scenario']} start {run['start']}/{starts}"
+
+
 def speedups(runs: list) -> dict:
     """
-    Compare each configuration's lap time with the book's on the same scenario.
+    Compare each configuration's lap time with the book's on the same scenario and start.
 
-    :param runs: run records with ``scenario``, ``configuration`` and, for a run that ended,
-        ``metrics``.
-    :return: (scenario, configuration) -> book lap time / this lap time, for every run other
-        than the book's whose scenario has both lap times (above 1: faster than the book).
+    :param runs: run records with ``scenario``, ``configuration``, ``start`` (optional) and,
+        for a run that ended, ``metrics``.
+    :return: (scenario, start, configuration) -> book lap time / this lap time, for every run
+        other than the book's where both lap times exist (above 1: faster than the book).
     """
-    book_lap_s = {run['scenario']: run['metrics']['lap_time_s'] for run in runs
+    book_lap_s = {run_place(run): run['metrics']['lap_time_s'] for run in runs
                   if run['configuration'] == REFERENCE_CONFIGURATION and run.get('metrics')}
     ratios = {}
     for run in runs:
-        reference_s = book_lap_s.get(run['scenario'])
+        reference_s = book_lap_s.get(run_place(run))
         lap_s = run['metrics']['lap_time_s'] if run.get('metrics') else None
         if run['configuration'] != REFERENCE_CONFIGURATION and reference_s and lap_s:
-            ratios[run['scenario'], run['configuration']] = reference_s / lap_s
+            ratios[(*run_place(run), run['configuration'])] = reference_s / lap_s
     return ratios
+
+
+def _mean_and_range(values: list, digits: int, scale: float) -> str:
+    if not values:
+        return MISSING
+    mean = sum(values) / len(values)
+    return (f'{number_cell(mean, digits, scale)} ({number_cell(min(values), digits, scale)}'
+            f'–{number_cell(max(values), digits, scale)})')
+
+
+def format_starts_table(runs: list) -> str:
+    """
+    Summarise the runs from several starts: per scenario and configuration, over its starts.
+
+    :param runs: run records; those of a single start are left out.
+    :return: a Markdown table (laps completed of the starts, then the lap time over the starts
+        that lapped and the distances over those that ran, each as mean (least–most)), or an
+        empty string when no run had several starts.
+    """
+    groups = {}
+    for run in runs:
+        if run.get('starts', 1) > 1:
+            groups.setdefault((run['scenario'], run['configuration']), []).append(run)
+    rows = []
+    for (scenario, configuration), group in groups.items():
+        figures = [run['metrics'] for run in group if run.get('metrics')]
+        laps_s = [metrics['lap_time_s'] for metrics in figures
+                  if metrics['lap_time_s'] is not None]
+        lost = [metrics['line_lost_percent'] for metrics in figures
+                if metrics['line_lost_percent'] is not None]
+        rows.append([
+            scenario, configuration, f'{len(laps_s)}/{len(group)}',
+            _mean_and_range(laps_s, 2, 1.0),
+            _mean_and_range([metrics['max_distance_from_line_m'] for metrics in figures], 2,
+                            CM_PER_M),
+            _mean_and_range([metrics['rms_distance_from_line_m'] for metrics in figures], 2,
+                            CM_PER_M),
+            _mean_and_range(lost, 2, 1.0)])
+    if not rows:
+        return ''
+    return markdown_table(STARTS_TABLE_COLUMNS, rows)
 
 
 def _count(number: int, noun: str) -> str:
@@ -513,7 +579,7 @@ def _lost_frames_cell(metrics: dict) -> str:
 
 
 def _table_row(run: dict, ratio) -> list:
-    cells = [run['scenario'], run['configuration']]
+    cells = [run_label(run), run['configuration']]
     metrics = run.get('metrics')
     if not metrics:
         blanks = [MISSING] * (len(TABLE_COLUMNS) - len(cells) - 3)
@@ -547,7 +613,7 @@ def format_table(runs: list) -> str:
     """
     ratios = speedups(runs)
     rows = [list(TABLE_COLUMNS)]
-    rows += [_table_row(run, ratios.get((run['scenario'], run['configuration'])))
+    rows += [_table_row(run, ratios.get((*run_place(run), run['configuration'])))
              for run in runs]
     widths = [max(len(row[column]) for row in rows) for column in range(len(TABLE_COLUMNS))]
     numeric = [False, False] + [True] * (len(TABLE_COLUMNS) - 2)
@@ -572,7 +638,7 @@ def format_progress(run: dict, done: int, total: int) -> str:
     :return: a line such as ``[scorecard] 3/14 s_bends / book: lap completed, done 100%,
         lap 121.4 s, RMS 2.9 cm; 58 s wall, 2.1x real time``.
     """
-    head = f"[{PROGRAM}] {done}/{total} {run['scenario']} / {run['configuration']}: "
+    head = f"[{PROGRAM}] {done}/{total} {run_label(run)} / {run['configuration']}: "
     metrics = run.get('metrics')
     if not metrics:
         return head + f"{run['end_reason']}: {run.get('error') or 'no figures'}"
@@ -763,15 +829,18 @@ def run_one(task: dict) -> dict:
     Run one configuration on one scenario in this worker process and score it.
 
     :param task: ``configuration``, ``params_file`` (str), ``scenario`` (a Scenario as a
-        dict), ``sim_parameters`` (name, value pairs), ``time_limit_s`` (None for the
-        default), ``stuck_after_s`` and ``node_log_level``.
-    :return: the run record: the task's names, ``end_reason``, ``error`` (one line, or None),
-        ``metrics`` (see :func:`run_metrics`; None after an error), ``lap_tracker`` and
-        ``line_statistics`` (the raw figures), ``time_limit_s``, ``wall_s`` (the run's spin
-        loop), ``setup_wall_s``, ``simulated_per_wall``, ``camera`` and ``domain_id``.
+        dict), ``start`` and ``starts`` (which of how many starts: the start's offsets are in
+        ``sim_parameters``), ``sim_parameters`` (name, value pairs), ``time_limit_s`` (None
+        for the default), ``stuck_after_s`` and ``node_log_level``.
+    :return: the run record: the task's names and start, ``end_reason``, ``error`` (one
+        line, or None), ``metrics`` (see :func:`run_metrics`; None after an error),
+        ``lap_tracker`` and ``line_statistics`` (the raw figures), ``time_limit_s``, ``wall_s``
+        (the run's spin loop), ``setup_wall_s``, ``simulated_per_wall``, ``camera`` and
+        ``domain_id``.
     """
     record = {'scenario': task['scenario']['name'], 'configuration': task['configuration'],
               'params_file': task['params_file'], 'course': task['scenario']['course'],
+              'start': task['start'], 'starts': task['starts'],
               'domain_id': _worker['domain_id'], 'end_reason': END_ERROR, 'error': None,
               'metrics': None}
     start_s = time.monotonic()
@@ -809,6 +878,17 @@ def _positive(text: str) -> float:
     value = float(text)
     if not value > 0.0:
         raise argparse.ArgumentTypeError(f'must be positive, got {text}')
+    return value
+
+
+def _starts_option(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= len(STARTS):
+        raise argparse.ArgumentTypeError(f'takes a whole number from 1 to {len(STARTS)}, got '
+                                         f'{text!r}')
     return value
 
 
@@ -857,6 +937,11 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='end a run as stuck when it progressed less than '
                              f'{100 * STUCK_MIN_PROGRESS_M:g} cm along the line in this many '
                              f'simulated seconds (default: {DEFAULT_STUCK_AFTER_S:g})')
+    parser.add_argument('--starts', type=_starts_option, default=1, metavar='N',
+                        help="run each scenario from N starts, the course's own and N - 1 at "
+                             'most 2 cm beside it or 1 degree turned, and add a table of each '
+                             "figure's mean and range over them (default: 1; at most "
+                             f'{len(STARTS)})')
     parser.add_argument('--sim-param', action='append', default=[], metavar='NAME:=VALUE',
                         help='set a simulator parameter for every run, such as '
                              'camera_rate_hz:=30.0, over any params file; repeatable')
@@ -866,7 +951,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     output.add_argument('--no-json', action='store_true', help='write no JSON file')
     parser.add_argument('--plots', type=Path, default=None, metavar='DIR',
                         help='also draw PNG plots here: lap times, and for each scenario the '
-                             'distance from the line and the speed along the course')
+                             'distance from the line and the speed along the course (from the '
+                             'first start)')
     parser.add_argument('--node-log-level', choices=NODE_LOG_LEVELS, default='error',
                         help="the nodes' ROS log level (default: error)")
     add_record_options(parser, one_file_per_run=True)
@@ -879,6 +965,10 @@ def parse_arguments(argv=None) -> argparse.Namespace:
         options.sim_parameters = [parse_sim_parameter(text) for text in options.sim_param]
     except (ValueError, FileNotFoundError) as error:
         parser.error(str(error))
+    given_starts = [name for name, _ in options.sim_parameters if name in START_SIM_PARAMETERS]
+    if options.starts > 1 and given_starts:
+        parser.error(f'--starts {options.starts} puts the robot down at its own starts: give '
+                     f'{given_starts[0]} with --sim-param only without --starts.')
     if options.plots is not None:
         # Before the runs, not after minutes of them.
         try:
@@ -886,7 +976,7 @@ def parse_arguments(argv=None) -> argparse.Namespace:
         except OSError as error:
             parser.error(f'--plots: cannot make folder {options.plots}: '
                          f'{error.strerror or error}.')
-    runs = len(options.scenarios) * len(options.configurations)
+    runs = len(options.scenarios) * len(options.configurations) * options.starts
     options.workers = min(options.jobs, runs)
     if options.domain_id is None:
         options.domain_id = FIRST_DOMAIN_ID + os.getpid() % DOMAIN_ID_SPREAD
@@ -898,14 +988,26 @@ def parse_arguments(argv=None) -> argparse.Namespace:
 
 
 def _tasks(options: argparse.Namespace) -> list:
-    return [{'configuration': configuration.name, 'params_file': str(configuration.params_file),
-             'scenario': dataclasses.asdict(scenario), 'sim_parameters': options.sim_parameters,
-             'time_limit_s': options.time_limit_s, 'stuck_after_s': options.stuck_after_s,
-             'node_log_level': options.node_log_level,
-             'record_path': None if options.record is None else str(
-                 Path(options.record) / f'{scenario.name}-{configuration.name}.mcap'),
-             'record_compressed': options.record_compressed}
-            for scenario in options.scenarios for configuration in options.configurations]
+    tasks = []
+    for scenario in options.scenarios:
+        for start, offsets in enumerate(STARTS[:options.starts], start=1):
+            sim_parameters = list(options.sim_parameters)
+            file_stem = scenario.name
+            if options.starts > 1:
+                sim_parameters += zip(START_SIM_PARAMETERS, offsets)
+                file_stem += f'-start{start}'
+            tasks += [{'configuration': configuration.name,
+                       'params_file': str(configuration.params_file),
+                       'scenario': dataclasses.asdict(scenario), 'start': start,
+                       'starts': options.starts, 'sim_parameters': sim_parameters,
+                       'time_limit_s': options.time_limit_s,
+                       'stuck_after_s': options.stuck_after_s,
+                       'node_log_level': options.node_log_level,
+                       'record_path': None if options.record is None else str(
+                           Path(options.record) / f'{file_stem}-{configuration.name}.mcap'),
+                       'record_compressed': options.record_compressed}
+                      for configuration in options.configurations]
+    return tasks
 
 
 def _run_all(tasks: list, options: argparse.Namespace) -> list:
@@ -929,6 +1031,7 @@ def _run_all(tasks: list, options: argparse.Namespace) -> list:
                     records[index] = {
                         'scenario': task['scenario']['name'],
                         'configuration': task['configuration'],
+                        'start': task['start'], 'starts': task['starts'],
                         'params_file': task['params_file'], 'end_reason': END_ERROR,
                         'error': f"{type(error).__name__}: {' '.join(str(error).split())}",
                         'metrics': None}
@@ -980,6 +1083,9 @@ def _metadata(options: argparse.Namespace, argv: list, wall_s: float) -> dict:
             'default_time_limit': f'{TIME_LIMIT_LAPS:g} x course length / '
                                   f'{BOOK_SPEED_MPS:g} m/s',
             'sim_parameters': dict(options.sim_parameters),
+            'starts': options.starts,
+            'start_offsets': [dict(zip(START_SIM_PARAMETERS, offsets))
+                              for offsets in STARTS[:options.starts]],
             'node_log_level': options.node_log_level,
         },
         'wall_s': wall_s,
@@ -1004,9 +1110,10 @@ def main(argv=None) -> int:
             print(f'[{PROGRAM}] Cannot record into {options.record}: '
                   f'{error.strerror or error}.', file=sys.stderr, flush=True)
             return 2
+    starts = f" x {_count(options.starts, 'start')}" if options.starts > 1 else ''
     print(f"[{PROGRAM}] {_count(len(tasks), 'run')} "
           f"({_count(len(options.configurations), 'configuration')} x "
-          f"{_count(len(options.scenarios), 'scenario')}) on "
+          f"{_count(len(options.scenarios), 'scenario')}{starts}) on "
           f"{_count(options.workers, 'worker')}, ROS domains {options.domain_id}-"
           f'{options.domain_id + options.workers - 1}.', file=sys.stderr, flush=True)
     start_s = time.monotonic()
@@ -1021,9 +1128,14 @@ def main(argv=None) -> int:
             print(f"[{PROGRAM}] recorded {record['recording']}", file=sys.stderr, flush=True)
     ratios = speedups(records)
     for record in records:
-        record['book_lap_time_ratio'] = ratios.get((record['scenario'], record['configuration']))
+        record['book_lap_time_ratio'] = ratios.get((*run_place(record),
+                                                    record['configuration']))
     print(format_table(records))
     print()
+    starts_table = format_starts_table(records)
+    if starts_table:
+        print(starts_table)
+        print()
     realistic_table = format_realistic_table(records)
     if realistic_table:
         print(realistic_table)
@@ -1031,13 +1143,16 @@ def main(argv=None) -> int:
     print(f'`{shlex.join([PROGRAM, *argv])}`: camera {_cameras(records)}; '
           f"{_count(len(records), 'run')} in {wall_s:.0f} s of wall time on "
           f"{_count(options.workers, 'worker')}. × book: the book configuration's "
-          "lap time over this one's.")
+          "lap time over this one's" + (
+              ' from the same start. Over the starts: mean (least–most); the lap time of '
+              'the starts that lapped.' if options.starts > 1 else '.'))
     if not options.no_json:
         document = {'metadata': _metadata(options, argv, wall_s), 'runs': records}
         options.json.write_text(json.dumps(document, indent=2) + '\n', encoding='utf-8')
         print(f'[{PROGRAM}] results in {options.json}', file=sys.stderr, flush=True)
     if options.plots is not None:
-        paths = write_plots(records, options.plots)
+        paths = write_plots([record for record in records if record['start'] == 1],
+                            options.plots)
         print(f'[{PROGRAM}] {_count(len(paths), "plot")} in {options.plots}/', file=sys.stderr,
               flush=True)
     return 1 if any(record['end_reason'] == END_ERROR for record in records) else 0

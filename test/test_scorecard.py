@@ -8,8 +8,9 @@ simulator and follower in worker processes for three seconds of simulated time p
 import json
 
 from conftest import run_domain_id
-from followbot_sim.scorecard import (format_table, main, parse_sim_parameter, run_metrics,
-                                     SCENARIOS, select_configurations, select_scenarios,
+from followbot_sim.scorecard import (format_starts_table, format_table, main,
+                                     parse_sim_parameter, run_metrics, SCENARIOS,
+                                     select_configurations, select_scenarios, STARTS,
                                      StuckDetector)
 import pytest
 
@@ -61,15 +62,17 @@ def test_run_metrics(score, line, expected):
     assert metrics['recoveries'] == line['recoveries']
 
 
-def run_record(configuration, scenario='book_loop', lap_time_s=None, error=None):
+def run_record(configuration, scenario='book_loop', lap_time_s=None, error=None, start=1,
+               starts=1, max_distance_m=0.05):
     """Return a run record as run_one makes it, finished or failed."""
     record = {'scenario': scenario, 'configuration': configuration, 'error': error,
-              'wall_s': 40.0, 'end_reason': 'error' if error else 'lap completed',
-              'metrics': None}
+              'start': start, 'starts': starts, 'wall_s': 40.0,
+              'end_reason': 'error' if error else 'lap completed', 'metrics': None}
     if not error:
         lap = (lap_time_s,) if lap_time_s else ()
-        record['metrics'] = run_metrics(
-            summary(COURSE_LENGTH_M if lap else 5.0, len(lap), lap), statistics())
+        score = summary(COURSE_LENGTH_M if lap else 5.0, len(lap), lap)
+        score['max_distance_from_line_m'] = max_distance_m
+        record['metrics'] = run_metrics(score, statistics())
         record['end_reason'] = 'lap completed' if lap else 'time limit'
     return record
 
@@ -102,6 +105,40 @@ def test_table_has_a_row_per_run_and_the_lap_time_ratio_to_the_book():
     assert followbot['max cm'] == '5.0'
     assert followbot['lost frames'] == '10 (5.0%)'
     assert followbot['recoveries'] == '2'
+
+
+def test_runs_from_several_starts_are_told_apart_and_compared_from_the_same_start():
+    runs = [run_record('followbot', lap_time_s=50.0, start=1, starts=2),
+            run_record('book', lap_time_s=100.0, start=1, starts=2),
+            run_record('followbot', lap_time_s=60.0, start=2, starts=2),
+            run_record('book', lap_time_s=90.0, start=2, starts=2)]
+    table = format_table(runs)
+    header = [cell.strip() for cell in table.splitlines()[0].strip('|').split('|')]
+    ratio = {tuple(row[:2]): row[header.index('× book')] for row in table_rows(table)}
+    assert ratio['book_loop start 1/2', 'followbot'] == '2.00×'
+    assert ratio['book_loop start 2/2', 'followbot'] == '1.50×'
+
+
+def test_the_starts_table_gives_each_figure_over_the_starts():
+    runs = [run_record('followbot', lap_time_s=50.0, start=1, starts=3, max_distance_m=0.05),
+            run_record('followbot', lap_time_s=51.0, start=2, starts=3, max_distance_m=0.07),
+            run_record('followbot', start=3, starts=3, max_distance_m=0.12),
+            run_record('book', 's_bends', error='RuntimeError: boom', start=1, starts=3),
+            run_record('book', 's_bends', lap_time_s=120.0, start=2, starts=3),
+            run_record('book', 's_bends', lap_time_s=124.0, start=3, starts=3)]
+    table = format_starts_table(runs)
+    header = [cell.strip() for cell in table.splitlines()[0].strip('|').split('|')]
+    rows = [dict(zip(header, row)) for row in table_rows(table)]
+    assert [(row['scenario'], row['configuration']) for row in rows] == [
+        ('book_loop', 'followbot'), ('s_bends', 'book')]
+    # The lap time over the starts that lapped; the distances over every start that ran.
+    assert rows[0]['laps'] == '2/3'
+    assert rows[0]['lap s'] == '50.50 (50.00–51.00)'
+    assert rows[0]['max cm'] == '8.00 (5.00–12.00)'
+    assert rows[1]['laps'] == '2/3'
+    assert rows[1]['lap s'] == '122.00 (120.00–124.00)'
+    # Runs of a single start have no such table.
+    assert format_starts_table([run_record('followbot', lap_time_s=50.0)]) == ''
 
 
 def test_a_failed_run_shows_its_error_in_its_row():
@@ -194,6 +231,10 @@ def test_stuck_only_after_a_whole_window_without_progress():
     (['--params-file', '/nowhere/x.yaml'], 'does not exist'),
     (['--sim-param', 'course:=dashed'], 'set by the scorecard'),
     (['--jobs', '0'], 'must be at least 1'),
+    (['--starts', '0'], f'from 1 to {len(STARTS)}'),
+    (['--starts', str(len(STARTS) + 1)], f'from 1 to {len(STARTS)}'),
+    (['--starts', '2', '--sim-param', 'start_lateral_offset_m:=0.01'],
+     'give start_lateral_offset_m with --sim-param only without --starts'),
 ])
 def test_bad_options_end_with_one_clear_line(capsys, arguments, message):
     with pytest.raises(SystemExit) as exit_info:
@@ -232,3 +273,31 @@ def test_scorecard_runs_the_nodes_and_writes_the_table_and_json(tmp_path, monkey
     stdout = capsys.readouterr().out
     assert '| scenario' in stdout
     assert len([line for line in stdout.splitlines() if line.startswith('| book_loop')]) == 3
+
+
+def test_each_start_puts_the_robot_down_where_it_says(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    json_path = tmp_path / 'scorecard.json'
+    record_folder = tmp_path / 'runs'
+
+    exit_code = main(['--scenarios', 'book_loop', '--configs', 'followbot', '--starts', '2',
+                      '--time-limit-s', str(E2E_TIME_LIMIT_S), '--jobs', '2',
+                      '--domain-id', str(run_domain_id()), '--json', str(json_path),
+                      '--record', str(record_folder)])
+
+    assert exit_code == 0
+    document = json.loads(json_path.read_text())
+    runs = {run['start']: run for run in document['runs']}
+    assert sorted(runs) == [1, 2]
+    assert all(run['error'] is None and run['starts'] == 2 for run in runs.values())
+    # The first start is the course's own, on the line; the second is 1 cm beside it.
+    lateral_m, heading_deg = STARTS[1]
+    assert document['metadata']['options']['start_offsets'][1] == {
+        'start_lateral_offset_m': lateral_m, 'start_heading_offset_deg': heading_deg}
+    assert runs[1]['metrics']['max_distance_from_line_m'] < 0.5 * lateral_m
+    assert runs[2]['metrics']['max_distance_from_line_m'] >= 0.9 * lateral_m
+    assert sorted(path.name for path in record_folder.iterdir()) == [
+        'book_loop-start1-followbot.mcap', 'book_loop-start2-followbot.mcap']
+    stdout = capsys.readouterr().out
+    assert any(line.startswith('| book_loop start 2/2') for line in stdout.splitlines())
+    assert '| book_loop | followbot | 0/2 |' in stdout
