@@ -8,9 +8,13 @@ detector involved. Occlusion is by nothing but the image bounds and the horizon 
 behind the camera): nothing stands on the line in the simulator's worlds.
 
 A frame's truth is a :class:`LineTruth`: the visible pieces of the projected centre line as
-``(column, row, width)`` polylines (the shape :func:`followbot_sim.perception_score.band_truth`
-scores a detection against), and, for a set of rows, the columns where the line crosses them.
-Pure numpy: no ROS, no MuJoCo.
+``(column, row, width)`` polylines, and, for a set of rows, the stretches of each row the paint
+covers, as a labeller marks a real frame (the shape
+:func:`followbot_sim.perception_score.band_truth` scores a detection against). The paint is
+projected as drawn, not from its centre: where the line crosses a row aslant the stretch is
+longer than the tape is wide, and where a bend takes the tape out at the image's side the edge
+of the paint still shows in rows its centre crosses outside the image. Pure numpy: no ROS, no
+MuJoCo.
 """
 
 import dataclasses
@@ -22,6 +26,18 @@ import numpy as np
 MIN_DEPTH_M = 1e-3
 # A pixel's footprint: rows and columns from -0.5 to size - 0.5 lie on the image.
 HALF_PIXEL = 0.5
+# The paint is the union of a quadrilateral per painted segment of the centre line, mitred to
+# its neighbours, and, where the line turns by more than this between segments, a polygon of
+# JOIN_SIDES sides round the vertex (the round join the floor texture draws, where a mitre
+# would reach out beyond it).
+JOIN_MIN_TURN_RAD = 0.05
+JOIN_SIDES = 8
+# Stretches of one row less than this apart are one: rectangles of consecutive segments meet
+# along their shared end, give or take rounding.
+MERGE_GAP_PX = 1.0
+# Polygons are crossed with the rows this many at a time (bounds the memory: polygons x
+# JOIN_SIDES x rows floats).
+POLYGON_CHUNK = 256
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,8 +80,9 @@ class LineTruth:
         ``(column px, row px, line width px)`` in order along the line; a piece ends where the
         line leaves the image, passes the horizon or (dashed lines) enters a gap.
     :ivar rows_px: the rows sampled for :attr:`crossings`.
-    :ivar crossings: for each sampled row, an (M, 2) array of ``(column px, width px)`` where a
-        visible piece crosses the row, sorted by column; empty where the line is not seen.
+    :ivar crossings: for each sampled row, an (M, 2) array ``(middle column px, length px)``
+        of the stretches of the row that the paint covers within the image, sorted by column;
+        empty where the line is not seen.
     """
 
     pieces: tuple
@@ -82,8 +99,8 @@ class LineTruth:
 
     @property
     def visible(self) -> bool:
-        """Return whether any part of the line is in the image."""
-        return bool(self.pieces)
+        """Return whether any part of the line (its centre, or paint on a sampled row) shows."""
+        return bool(self.pieces) or any(len(crossings) for crossings in self.crossings)
 
 
 def sampled_rows(height_px: int, row_step_px: int) -> np.ndarray:
@@ -236,36 +253,137 @@ def _join_segments(starts, ends, kept, t0, t1, closed):
     return pieces
 
 
-def row_crossings(pieces, rows_px) -> tuple:
+def _paint_polygons(centre_line_xy, painted, line_width_m: float) -> np.ndarray:
     """
-    Find where the pieces cross each row.
+    Return the paint of a closed line as convex floor polygons of JOIN_SIDES vertices.
 
-    :param pieces: (K, 3) arrays ``(column, row, width)`` from :func:`project_line`.
+    Each painted segment is a quadrilateral. Where the line turns gently its neighbours share
+    their end across the line (a mitre), so the quadrilaterals neither overlap nor leave a
+    wedge; where it turns by more than JOIN_MIN_TURN_RAD each ends square to itself and a
+    polygon round the vertex fills the join. A quadrilateral repeats its last vertex to make up
+    the count.
+
+    :return: (P, JOIN_SIDES, 2) floor points in metres.
+    """
+    points = np.asarray(centre_line_xy, dtype=float)
+    painted = np.asarray(painted, dtype=bool)
+    following = np.roll(np.arange(len(points)), -1)
+    previous = np.roll(np.arange(len(points)), 1)
+    steps = points[following] - points
+    lengths = np.hypot(*steps.T)
+    directions = steps / np.where(lengths > 0.0, lengths, 1.0)[:, None]
+    half_width_m = line_width_m / 2.0
+    # Per segment (from its point to the next): its own left side, half the width long.
+    sides = half_width_m * np.column_stack([-directions[:, 1], directions[:, 0]])
+    segment_painted = painted & painted[following] & (lengths > 0.0)
+    turn_rad = np.abs(np.arctan2(
+        directions[previous, 0] * directions[:, 1] - directions[previous, 1] * directions[:, 0],
+        np.einsum('ij,ij->i', directions[previous], directions)))
+    # Per point: the mitre, along the bisector and long enough to reach both segments' edges.
+    mitred = segment_painted & segment_painted[previous] & (turn_rad <= JOIN_MIN_TURN_RAD)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        mitres = (sides + sides[previous]) / (1.0 + np.cos(turn_rad))[:, None]
+    segments = np.flatnonzero(segment_painted)
+    ends = following[segments]
+    start_side = np.where(mitred[segments, None], mitres[segments], sides[segments])
+    end_side = np.where(mitred[ends, None], mitres[ends], sides[segments])
+    start, end = points[segments], points[ends]
+    quadrilaterals = np.stack([start + start_side, end + end_side, end - end_side]
+                              + [start - start_side] * (JOIN_SIDES - 3), axis=1)
+    joins = np.flatnonzero(segment_painted & segment_painted[previous]
+                           & (turn_rad > JOIN_MIN_TURN_RAD))
+    angles = np.arange(JOIN_SIDES) * (2.0 * np.pi / JOIN_SIDES)
+    corners = half_width_m * np.column_stack([np.cos(angles), np.sin(angles)])
+    discs = points[joins][:, None, :] + corners[None, :, :]
+    return np.concatenate([quadrilaterals, discs], axis=0)
+
+
+def _row_spans(polygons_px, rows_px, chunk=POLYGON_CHUNK):
+    """
+    Cross convex image polygons with rows.
+
+    :param polygons_px: (P, K, 2) vertices (column, row).
+    :param rows_px: (R,) rows.
+    :return: (row index, first column, last column) arrays, one entry per polygon and row it
+        covers.
+    """
+    found = ([], [], [])
+    for first in range(0, len(polygons_px), chunk):
+        polygons = polygons_px[first:first + chunk]
+        x0, y0 = polygons[:, :, 0:1], polygons[:, :, 1:2]
+        following = np.roll(polygons, -1, axis=1)
+        x1, y1 = following[:, :, 0:1], following[:, :, 1:2]
+        low, high = np.minimum(y0, y1), np.maximum(y0, y1)
+        # Half-open in row: a vertex lying on a row counts once.
+        crossing = (low <= rows_px) & (rows_px < high)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            columns = x0 + (rows_px - y0) * (x1 - x0) / (y1 - y0)
+        first_px = np.where(crossing, columns, np.inf).min(axis=1)
+        last_px = np.where(crossing, columns, -np.inf).max(axis=1)
+        covered = np.nonzero(np.isfinite(first_px))
+        found[0].append(covered[1])
+        found[1].append(first_px[covered])
+        found[2].append(last_px[covered])
+    return tuple(np.concatenate(part) if part else np.empty(0) for part in found)
+
+
+def paint_crossings(centre_line_xy, painted, line_width_m: float, view: PinholeView, rows_px,
+                    distort=None) -> tuple:
+    """
+    Find the stretches of each row that the painted line covers in the image.
+
+    The paint (see :func:`_paint_polygons`) is projected through the same pinhole, and lens
+    distortion, that drew the frame; a polygon reaching behind the camera is left out (it lies
+    at the far sides of the view, off the image).
+
+    :param centre_line_xy: (N, 2) floor points of the closed centre line in metres.
+    :param painted: (N,) booleans: whether the line is painted at each point.
+    :param line_width_m: the line's width in metres.
+    :param view: the camera.
     :param rows_px: the rows.
-    :return: one (M, 2) array ``(column, width)`` per row, sorted by column.
+    :param distort: the lens's distortion of normalised coordinates, or None.
+    :return: one (M, 2) array ``(middle column, length)`` per row, sorted by column, the
+        stretches cut to the image's columns.
     """
     rows_px = np.asarray(rows_px, dtype=float)
-    if not pieces:
-        return tuple(np.empty((0, 2)) for _ in rows_px)
-    starts = np.vstack([piece[:-1] for piece in pieces])
-    ends = np.vstack([piece[1:] for piece in pieces])
-    last_of_piece = np.zeros(len(starts), dtype=bool)
-    last_of_piece[np.cumsum([len(piece) - 1 for piece in pieces]) - 1] = True
-    v0, v1 = starts[:, 1:2], ends[:, 1:2]
-    low, high = np.minimum(v0, v1), np.maximum(v0, v1)
-    # Half-open in row, so a joint lying exactly on a row counts once; a piece's last
-    # segment is closed, so its end point counts too.
-    spans = (low <= rows_px) & ((rows_px < high) | (last_of_piece[:, None] & (rows_px == high)))
-    rise = np.where(v1 == v0, 1.0, v1 - v0)
-    t = np.where(v1 == v0, 0.5, (rows_px - v0) / rise)
-    columns = starts[:, 0:1] + t * (ends[:, 0:1] - starts[:, 0:1])
-    widths = starts[:, 2:3] + t * (ends[:, 2:3] - starts[:, 2:3])
-    crossings = []
-    for row_index in range(len(rows_px)):
-        mask = spans[:, row_index]
-        found = np.column_stack([columns[mask, row_index], widths[mask, row_index]])
-        crossings.append(found[np.argsort(found[:, 0])])
-    return tuple(crossings)
+    polygons = _paint_polygons(centre_line_xy, painted, line_width_m)
+    floor = np.concatenate([polygons, np.zeros(polygons.shape[:2] + (1,))], axis=2)
+    rotation = np.asarray(view.rotation, dtype=float)
+    camera = (floor - np.asarray(view.position_m, dtype=float)) @ rotation
+    ahead = np.all(camera[:, :, 2] >= MIN_DEPTH_M, axis=1)
+    camera = camera[ahead]
+    normalised_x = camera[:, :, 0] / camera[:, :, 2]
+    normalised_y = camera[:, :, 1] / camera[:, :, 2]
+    if distort is not None:
+        normalised_x, normalised_y = distort(normalised_x, normalised_y)
+    pixels = np.stack([view.cx_px + view.fx_px * normalised_x,
+                       view.cy_px + view.fy_px * normalised_y], axis=2)
+    right_px, bottom_px = view.width_px - HALF_PIXEL, view.height_px - HALF_PIXEL
+    on_image = ((pixels[:, :, 0].max(axis=1) >= -HALF_PIXEL)
+                & (pixels[:, :, 0].min(axis=1) <= right_px)
+                & (pixels[:, :, 1].max(axis=1) >= -HALF_PIXEL)
+                & (pixels[:, :, 1].min(axis=1) <= bottom_px))
+    row_index, first_px, last_px = _row_spans(pixels[on_image], rows_px)
+    first_px = np.maximum(first_px, -HALF_PIXEL)
+    last_px = np.minimum(last_px, right_px)
+    kept = first_px < last_px
+    row_index, first_px, last_px = row_index[kept], first_px[kept], last_px[kept]
+    # Merge overlapping stretches row by row, all rows at once: each row is shifted far
+    # beyond the previous one, so a running maximum never carries over.
+    order = np.lexsort((first_px, row_index))
+    shift = row_index[order] * 4.0 * (view.width_px + MERGE_GAP_PX)
+    starts, ends = first_px[order] + shift, last_px[order] + shift
+    reach = np.maximum.accumulate(ends) if len(ends) else ends
+    new = np.ones(len(starts), dtype=bool)
+    new[1:] = starts[1:] > reach[:-1] + MERGE_GAP_PX
+    heads = np.flatnonzero(new)
+    merged_rows = row_index[order][heads]
+    merged_first = starts[heads] - shift[heads]
+    merged_last = (np.maximum.reduceat(ends, heads) if len(heads) else ends) - shift[heads]
+    stretches = np.column_stack([(merged_first + merged_last) / 2.0, merged_last - merged_first])
+    # Already in row order, and by column within a row.
+    bounds = np.searchsorted(merged_rows, np.arange(1, len(rows_px)))
+    return tuple(np.split(stretches, bounds))
 
 
 def line_truth(centre_line_xy, painted, line_width_m: float, view: PinholeView, rows_px,
@@ -277,10 +395,11 @@ def line_truth(centre_line_xy, painted, line_width_m: float, view: PinholeView, 
     :param painted: (N,) booleans: whether the line is painted at each point.
     :param line_width_m: the line's width in metres.
     :param view: the camera as it rendered the frame.
-    :param rows_px: the rows to report crossings at (see :func:`sampled_rows`).
+    :param rows_px: the rows to report the paint's stretches at (see :func:`sampled_rows`).
     :param distort: the lens's distortion of normalised coordinates, or None for a pinhole.
     :return: the LineTruth.
     """
     pieces = project_line(centre_line_xy, painted, line_width_m, view, distort)
     rows_px = np.asarray(rows_px, dtype=float)
-    return LineTruth(tuple(pieces), rows_px, row_crossings(pieces, rows_px))
+    return LineTruth(tuple(pieces), rows_px, paint_crossings(
+        centre_line_xy, painted, line_width_m, view, rows_px, distort))

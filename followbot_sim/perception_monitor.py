@@ -7,8 +7,9 @@ frame against ``camera/rgb/line_truth`` of the same stamp with
 :mod:`followbot_sim.perception_score` (the scoring used for labelled real frames). The scorecard
 and the benchmark run it for the realistic table: per band right / false / missed.
 
-The truth topic samples rows (``line_truth_row_step_px``; 1 for scoring): each crossing becomes
-a one-row piece of the line's centre, ``(x, row - 0.5, w)`` to ``(x, row + 0.5, w)``.
+The truth topic samples rows (``line_truth_row_step_px``; 1 for scoring): each stretch of a row
+the paint covers becomes a one-row piece, ``(x, row - 0.5, w)`` to ``(x, row + 0.5, w)``, as a
+labelled real frame gives the line's middle and extent along its rows.
 """
 
 import math
@@ -29,10 +30,11 @@ ROW_HALF_PX = 0.5
 
 def truth_polylines(points) -> list:
     """
-    Turn line-truth points (the PolygonStamped layout) into one-row centre-line pieces.
+    Turn line-truth points (the PolygonStamped layout) into one-row pieces of the line.
 
-    :param points: objects with x (column), y (row) and z (width px, 0 where not seen).
-    :return: ``[(x, y, w), (x, y, w)]`` polylines, one per crossing, sorted by row.
+    :param points: objects with x (middle column), y (row) and z (length px along the row, 0
+        where not seen).
+    :return: ``[(x, y, w), (x, y, w)]`` polylines, one per stretch, sorted by row.
     """
     pieces = []
     for point in points:

@@ -206,8 +206,8 @@ def fill_line_truth_polygon(msg: PolygonStamped, truth) -> PolygonStamped:
     """
     Write a frame's line truth into a PolygonStamped, the layout of ``camera/rgb/line_truth``.
 
-    One point per crossing of a sampled row by the line's centre: x = column and y = row in
-    pixels of the RGB image (pixel centres at integers), z = the line's width there in pixels
+    One point per stretch of a sampled row that the paint covers: x = its middle column and
+    y = row in pixels of the RGB image (pixel centres at integers), z = its length in pixels
     (> 0). A sampled row where the line is not seen gets one point x = NaN, y = row, z = 0.
 
     :param msg: the message to fill (its header is left alone).

@@ -414,11 +414,12 @@ class FollowbotWorld:
         """
         Return where the course's centre line is drawn in a robot's RGB image right now.
 
-        :param row_step_px: report crossings at every this many rows, from row 0.
+        :param row_step_px: report the paint's stretches at every this many rows, from row 0.
         :param distort: the lens distortion of normalised coordinates the camera image has
             (see :mod:`followbot_sim.line_truth`), None for the pinhole MuJoCo renders.
         :param robot: the robot's index.
-        :return: the visible pieces of the centre line and its crossings of the sampled rows.
+        :return: the visible pieces of the centre line and the paint's stretches along the
+            sampled rows.
         """
         if self._painted_points is None:
             points_xy = self._course.centre_line_xy

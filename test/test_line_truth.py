@@ -48,13 +48,17 @@ def down_view():
 
 def square_loop(half_m):
     """Return a closed square centre line, corners at +-half_m, points 1 cm apart."""
-    corners = np.array([[half_m, -half_m], [half_m, half_m], [-half_m, half_m],
-                        [-half_m, -half_m]])
+    return loop_through([[half_m, -half_m], [half_m, half_m], [-half_m, half_m],
+                         [-half_m, -half_m]])
+
+
+def loop_through(corners):
+    """Return a closed centre line through the corners, points 1 cm apart."""
+    corners = np.asarray(corners, dtype=float)
     points = []
     for start, end in zip(corners, np.roll(corners, -1, axis=0)):
         count = int(round(np.hypot(*(end - start)) / 0.01))
-        for fraction in np.arange(count) / count:
-            points.append(start + fraction * (end - start))
+        points += [start + fraction * (end - start) for fraction in np.arange(count) / count]
     return np.array(points)
 
 
@@ -69,6 +73,28 @@ def test_straight_down_view_puts_a_line_at_its_metric_column():
     np.testing.assert_allclose(columns, [centre_px - 50.0, centre_px + 50.0], atol=1e-9)
     # The line is 0.1 m wide at 1 m: 10 px.
     np.testing.assert_allclose(truth.crossings[middle][:, 1], 10.0)
+
+
+def test_a_line_crossing_rows_aslant_covers_more_of_each_row():
+    # A diamond: its sides cross the rows at 45 degrees, so the 10 px tape covers 10 sqrt(2).
+    points = loop_through([[0.5, 0.0], [0.0, 0.5], [-0.5, 0.0], [0.0, -0.5]])
+    truth = line_truth(points, np.ones(len(points), bool), 0.1, down_view(),
+                       sampled_rows(SIZE_PX, 5))
+    row = list(truth.rows_px).index(75.0)
+    np.testing.assert_allclose(truth.crossings[row], [[75.0, 10.0 * math.sqrt(2.0)],
+                                                      [125.0, 10.0 * math.sqrt(2.0)]],
+                               atol=1e-6)
+
+
+def test_paint_at_the_side_is_true_though_the_centre_is_outside():
+    # Sides at +-1.02 m: centres 2 px beyond the image's sides, the paint 5 px either side.
+    points = square_loop(1.02)
+    truth = line_truth(points, np.ones(len(points), bool), 0.1, down_view(),
+                       sampled_rows(SIZE_PX, 10))
+    row = list(truth.rows_px).index(100.0)
+    # Only what lies on the image counts: from column -0.5 to 3, and from 197 to 200.5.
+    np.testing.assert_allclose(truth.crossings[row], [[1.25, 3.5], [198.75, 3.5]], atol=1e-6)
+    assert truth.visible and not truth.pieces
 
 
 def test_line_outside_the_image_is_not_visible():
@@ -90,14 +116,15 @@ def test_floor_behind_the_camera_is_cut_at_the_horizon():
     # Every visible point lies below the horizon (row 100) and within the image.
     assert rows.min() > 100.0
     assert rows.max() <= SIZE_PX - 0.5
-    # Ahead lies the far side (x = +1 m, 0.3 m down at 1 m: row 130, spanning the width);
-    # the sides y = +-1 m enter the image only from 1 m on, at its corners: nearer rows see
-    # nothing, as the back side (x = -1 m) is behind the camera.
-    for row, crossings in zip(truth.rows_px, truth.crossings):
-        if row == 130.0:
-            np.testing.assert_allclose(crossings[:, 0], [0.0, 200.0], atol=1e-6)
-        if row > 130.5:
-            assert len(crossings) == 0
+    # Ahead lies the far side (x = +1 m, 0.3 m down at 1 m: row 130, spanning the width); its
+    # paint, 0.95 to 1.05 m away, covers rows 128.6 to 131.6 from side to side. The sides
+    # y = +-1 m enter the image only from 1 m on, at its corners: nearer rows see nothing, as
+    # the back side (x = -1 m) is behind the camera.
+    painted_rows = [row for row, crossings in zip(truth.rows_px, truth.crossings)
+                    if len(crossings)]
+    assert painted_rows == [129.0, 130.0, 131.0]
+    middle = list(truth.rows_px).index(130.0)
+    np.testing.assert_allclose(truth.crossings[middle], [[100.0, SIZE_PX]], atol=1e-6)
 
 
 def test_gaps_of_a_dashed_line_are_not_visible():
