@@ -32,8 +32,8 @@ HALF_PIXEL = 0.5
 # would reach out beyond it).
 JOIN_MIN_TURN_RAD = 0.05
 JOIN_SIDES = 8
-# Stretches of one row less than this apart are one: rectangles of consecutive segments meet
-# along their shared end, give or take rounding.
+# Stretches of one row less than this apart are one: the quadrilaterals of consecutive
+# segments meet along their shared, mitred end, give or take rounding.
 MERGE_GAP_PX = 1.0
 # Polygons are crossed with the rows this many at a time (bounds the memory: polygons x
 # JOIN_SIDES x rows floats).
