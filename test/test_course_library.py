@@ -94,9 +94,8 @@ def drive_centre_line(course, laps, offset_m=0.0, speed_m_s=0.5):
     end_m = laps * course.length_m + 0.01
     steps = math.ceil(end_m / (speed_m_s * SAMPLE_PERIOD_S))
     for index, arc_m in enumerate(np.linspace(0.0, end_m, steps + 1)):
-        x_m, y_m, heading_rad = course.point_at(arc_m)
-        tracker.update(x_m - offset_m * math.sin(heading_rad),
-                       y_m + offset_m * math.cos(heading_rad), index * SAMPLE_PERIOD_S)
+        x_m, y_m, _ = course.point_at(arc_m, offset_m)
+        tracker.update(x_m, y_m, index * SAMPLE_PERIOD_S)
     return tracker
 
 

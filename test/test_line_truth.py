@@ -170,10 +170,8 @@ def test_truth_lies_on_the_rendered_line(opengl, course_name):
     try:
         checked = 0
         for arc_m, sideways_m, yaw_offset_rad in POSES:
-            x_m, y_m, heading_rad = course.point_at(arc_m)
-            world.reset_robot((x_m - sideways_m * math.sin(heading_rad),
-                               y_m + sideways_m * math.cos(heading_rad),
-                               heading_rad + yaw_offset_rad))
+            x_m, y_m, heading_rad = course.point_at(arc_m, sideways_m)
+            world.reset_robot((x_m, y_m, heading_rad + yaw_offset_rad))
             image = world.render_camera()
             truth = world.line_truth(row_step_px=1)
             width_px = world.image_size_px[0]

@@ -76,15 +76,14 @@ def test_camera_info_projects_floor_points_where_the_image_draws_them(sim):
     image = image_to_array(recorder.latest['camera/rgb/image_raw'])
     info = recorder.latest['camera/rgb/camera_info']
     camera = world_from_frame(sim, frames.CAMERA_RGB_OPTICAL_FRAME)
-    x_m, y_m, heading_rad = sim.world.course.point_at(LOOK_AHEAD_M)
+    x_m, y_m, _ = sim.world.course.point_at(LOOK_AHEAD_M)
     u_px, v_px = project(info, camera, (x_m, y_m, 0.0))
     row = image[int(round(v_px))].astype(int)
     # BGR: the yellow line has a strong red, little blue; the grey floor has equal channels.
     yellow_columns = np.flatnonzero(row[:, 2] - row[:, 0] > 100)
     assert yellow_columns.size > 0
     assert np.mean(yellow_columns) == pytest.approx(u_px, abs=PROJECTION_TOLERANCE_PX)
-    beside_xyz = (x_m - BESIDE_LINE_M * math.sin(heading_rad),
-                  y_m + BESIDE_LINE_M * math.cos(heading_rad), 0.0)
+    beside_xyz = (*sim.world.course.point_at(LOOK_AHEAD_M, BESIDE_LINE_M)[:2], 0.0)
     u_px, v_px = project(info, camera, beside_xyz)
     pixel = image[int(round(v_px)), int(round(u_px))].astype(int)
     assert max(pixel) - min(pixel) < 10

@@ -255,9 +255,8 @@ def floor_point_beside_line(course, arc_m, left_m):
     :param left_m: offset to the left of the direction of travel in metres.
     :return: (x, y, z) in metres, z = 0 on the floor.
     """
-    x_m, y_m, heading_rad = course.point_at(arc_m)
-    return np.array([x_m - left_m * math.sin(heading_rad),
-                     y_m + left_m * math.cos(heading_rad), 0.0])
+    x_m, y_m, _ = course.point_at(arc_m, left_m)
+    return np.array([x_m, y_m, 0.0])
 
 
 def project_to_camera_px(world, point_xyz_m):
