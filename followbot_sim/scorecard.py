@@ -461,8 +461,7 @@ def format_realistic_table(runs: list) -> str:
         metrics = run['metrics'] or {}
         perception = run['perception']
         preset, _, seed = run['scenario'].partition('@')[2].partition('#')
-        if run.get('starts', 1) > 1:
-            seed += f", start {run['start']}/{run['starts']}"
+        seed = ', '.join(filter(None, (seed, _start_text(run))))
         rows.append([preset, run['course'], seed, run['configuration'], run['end_reason'],
                      number_cell(metrics.get('lap_time_s'), 1),
                      number_cell(metrics.get('rms_distance_from_line_m'), 1, CM_PER_M),
@@ -482,10 +481,15 @@ def run_place(run: dict) -> tuple:
     return run['scenario'], run.get('start', 1)
 
 
+def _start_text(run: dict) -> str:
+    """Return which start a run drove from, such as ``start 3/8``; '' when it had only one."""
+    starts = run.get('starts', 1)
+    return '' if starts == 1 else f"start {run['start']}/{starts}"
+
+
 def run_label(run: dict) -> str:
     """Return how the tables name a run's scenario: with its start when there were several."""
-    starts = run.get('starts', 1)
-    return run['scenario'] if starts == 1 else f"{run['scenario']} start {run['start']}/{starts}"
+    return ' '.join(filter(None, (run['scenario'], _start_text(run))))
 
 
 def speedups(runs: list) -> dict:
