@@ -280,7 +280,8 @@ def _paint_polygons(centre_line_xy, painted, line_width_m: float) -> np.ndarray:
         directions[previous, 0] * directions[:, 1] - directions[previous, 1] * directions[:, 0],
         np.einsum('ij,ij->i', directions[previous], directions)))
     # Per point: the mitre, along the bisector and long enough to reach both segments' edges.
-    mitred = segment_painted & segment_painted[previous] & (turn_rad <= JOIN_MIN_TURN_RAD)
+    between_painted = segment_painted & segment_painted[previous]
+    mitred = between_painted & (turn_rad <= JOIN_MIN_TURN_RAD)
     with np.errstate(divide='ignore', invalid='ignore'):
         mitres = (sides + sides[previous]) / (1.0 + np.cos(turn_rad))[:, None]
     segments = np.flatnonzero(segment_painted)
@@ -290,8 +291,7 @@ def _paint_polygons(centre_line_xy, painted, line_width_m: float) -> np.ndarray:
     start, end = points[segments], points[ends]
     quadrilaterals = np.stack([start + start_side, end + end_side, end - end_side]
                               + [start - start_side] * (JOIN_SIDES - 3), axis=1)
-    joins = np.flatnonzero(segment_painted & segment_painted[previous]
-                           & (turn_rad > JOIN_MIN_TURN_RAD))
+    joins = np.flatnonzero(between_painted & ~mitred)
     angles = np.arange(JOIN_SIDES) * (2.0 * np.pi / JOIN_SIDES)
     corners = half_width_m * np.column_stack([np.cos(angles), np.sin(angles)])
     discs = points[joins][:, None, :] + corners[None, :, :]
