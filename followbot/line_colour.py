@@ -37,6 +37,10 @@ import numpy as np
 LINE_COLOURS = ('yellow', 'white', 'black', 'custom')
 # Presets whose line has a colour, which a grey (mono8) image cannot show.
 CHROMATIC_COLOURS = ('yellow',)
+# Presets whose line a shadow mimics: a deep shadow is as much darker than the floor as black
+# tape. (A patch of light passes white too, but on real frames the brighter parts within one
+# were glare, not tape.)
+SHADOWED_COLOURS = ('black',)
 # Fixed OpenCV HSV bounds ((hue, saturation, value) low, high) of each preset's first look.
 PRESET_HSV_BOUNDS = {
     'yellow': ((20, 100, 50), (40, 255, 255)),
@@ -194,6 +198,34 @@ def pixel_strength(model: FloorModel, pixels: np.ndarray, bands=None) -> np.ndar
         colourless = chroma <= MAX_GREY_SATURATION * np.maximum(level, typical)
         strength = np.where(colourless, contrast / needed, 0.0)
     return strength.astype(np.float32)
+
+
+def strength_within(model: FloorModel, pixels: np.ndarray, band: int):
+    """
+    Return how strongly the pixels of a stretch of a band are the line's, against its own floor.
+
+    A deep shadow is as much darker than the floor as black tape: over a stretch far wider
+    than the line the black preset takes it all for the line. The tape in it still stands
+    out from the shadow, as it does from the floor outside it. Each row of the stretch is
+    judged against its own floor, as a band may hold a shadow's edge.
+
+    :param model: the FloorModel of the image.
+    :param pixels: float32 pixels of one band's rows over the stretch, (rows, n, 3) BGR or
+        (rows, n) grey, already smoothed.
+    :param band: the band's index in the model (top down): its pixel noise is the stretch's.
+    :return: float32 strength (rows, n), judged with each row's lightest pixels of the
+        stretch as its floor, or None for a preset whose line no shadow mimics (see
+        SHADOWED_COLOURS).
+    """
+    if model.colour not in SHADOWED_COLOURS:
+        return None
+    feature = _feature(model.colour, _balanced(pixels, model.gains, model.grey), model.grey)
+    outer, inner = np.percentile(feature, [100 - value for value in FLOOR_PERCENTILES], axis=1,
+                                 keepdims=True)
+    rows = len(pixels)
+    local = model._replace(typical=_floor_value(outer, inner, floor_below=False),
+                           noise=np.repeat(model.noise[band:band + 1], rows, axis=0))
+    return pixel_strength(local, pixels)
 
 
 def _yellow_hue(pixels: np.ndarray, yellowness: np.ndarray | None = None) -> np.ndarray:

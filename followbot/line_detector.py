@@ -16,7 +16,9 @@ pixels form stripes; which stripe, if any, is the line is decided with what the 
   preset's fixed HSV bounds exactly (see :mod:`followbot.colour_rule`). When that leaves any
   doubt (a band below the horizon with no stripe, several stripes, a stripe of the wrong width)
   the bands are judged again relative to their floor, white-balanced and exposure-free (see
-  :mod:`followbot.line_colour`), which finds pale and far tape and ignores colour casts.
+  :mod:`followbot.line_colour`), which finds pale and far tape and ignores colour casts. A
+  stretch of black far too wide for the tape may be a deep shadow: the tape in it, darker
+  than the shadow, is looked for against the shadow itself.
 - **That the line is one line.** The stripes of the bands, put on the floor, must form a
   smooth path: from one band to the next the line may turn, but not jump sideways by more than
   ``max_stripe_jump_m``, nor zigzag. Among all chains of stripes through the bands, the one
@@ -167,6 +169,9 @@ RIVAL_WEIGHT = 0.8
 SPLIT_GAP_M = 0.01
 SPLIT_GAP_SHARE = 0.25
 MIN_SPLIT_GAP_PX = 3.0
+# A stretch of a band far too wide for the line is a shadow with the line in it when what
+# stands out within it covers at most this share of it.
+MAX_SHADOWED_SHARE = 0.5
 # How much a band that cannot see a line which left the view at the image's side counts
 # against it: not fully (it cannot see it), not nothing (the robot turns blind there; on
 # realistic frames full trust had the robot enter corners faster and lose the line after them).
@@ -752,6 +757,7 @@ class LineDetector:
                 stripes = [tuple(column) for column in stripes.T.tolist()]
             if len(stripes) > 1:
                 stripes = _joined(stripes, plan.split_gap_px[index])
+            stripes = self._without_shadows(index, stripes, plan)
             for start, end, area, x_moment, y_moment in stripes:
                 at_left, at_right = start == 0, end == image_width
                 at_side = at_left or at_right
@@ -798,6 +804,75 @@ class LineDetector:
                 _Candidate(index, x_px, y_px, area, quality, point, at_side))
         return [sorted(band, key=lambda candidate: -candidate.quality)[
             :MAX_CANDIDATES_PER_BAND] for band in candidates]
+
+    def _without_shadows(self, index, stripes, plan):
+        """
+        Return a band's stripes, each far too wide one replaced by the stripes within it.
+
+        A deep shadow on the floor passes the black preset over a stretch far wider than the
+        line. Judged against that stretch's own floor, the tape in it still stands out: where
+        that finds stripes over at most MAX_SHADOWED_SHARE of the stretch, they are its
+        stripes. A stretch that is dark all over is the line itself (running across the
+        view) and stays whole, as does a stripe of the line's width measured across its
+        slope (a diagonal line).
+        """
+        expected = plan.expected_width_px[index]
+        if (self._strength is None or expected is None
+                or self._floor_model.colour not in line_colour.SHADOWED_COLOURS):
+            return stripes
+        widest_px = MAX_WIDTH_RATIO * expected
+        result = []
+        for stripe in stripes:
+            start, end, area = stripe[:3]
+            inner = None
+            if (end - start > widest_px
+                    and self._slanted_width(index, start, end, area)[0] > widest_px):
+                inner = self._stripes_within(index, start, end)
+            if inner is None:
+                result.append(stripe)
+            else:
+                result.extend(inner)
+        if len(result) > 1:
+            result = _joined(result, plan.split_gap_px[index])
+        return result
+
+    def _stripes_within(self, index, start, end):
+        """
+        Return the stripes that stand out within a stretch of a band, as _stripes gives them.
+
+        :return: the stripes, left to right, or None when nothing stands out or it covers
+            more than MAX_SHADOWED_SHARE of the stretch.
+        """
+        top, bottom = self._bands[index]
+        rows = bottom - top
+        image, (channels, blue, red) = self._look_image
+        width = self._image_shape[1]
+        reach = line_colour.SMOOTHING_KERNEL_PX[0] // 2
+        first, last = max(0, start - reach), min(width, end + reach)
+        pixels = image[top:bottom, first:last].astype(np.float32)
+        if channels > _GREY_CHANNELS:
+            pixels = pixels[..., [blue, 1, red]]
+        pixels = cv2.blur(pixels, line_colour.SMOOTHING_KERNEL_PX)[:, start - first:end - first]
+        top_down = len(self._bands) - 1 - index
+        strength = line_colour.strength_within(self._floor_model, pixels, top_down)
+        if strength is None:
+            return None
+        layout = self._layout
+        mask = layout.mask[top_down].reshape(layout.rows, layout.width)[:rows, start:end]
+        inside = (strength >= 1.0) & (mask != 0)
+        counts = inside.sum(axis=0)
+        occupied = np.concatenate(([False], counts >= max(1, rows // 2), [False]))
+        edges = np.flatnonzero(occupied[1:] != occupied[:-1]).reshape(-1, 2)
+        if not len(edges) or (edges[:, 1] - edges[:, 0]).sum() > MAX_SHADOWED_SHARE * (
+                end - start):
+            return None
+        row_sums = (inside * np.arange(rows)[:, np.newaxis]).sum(axis=0)
+        columns = np.arange(start, end)
+        return [(start + first_column, start + end_column,
+                 int(counts[first_column:end_column].sum()),
+                 int((counts * columns)[first_column:end_column].sum()),
+                 int(row_sums[first_column:end_column].sum()))
+                for first_column, end_column in edges.tolist()]
 
     def _points(self, x_px, y_px, geometry):
         """Return the points candidates stand for: on the floor (metres), or in the image."""

@@ -94,6 +94,29 @@ def test_black_tape_is_darker_than_its_floor(floor_bgr, line_bgr):
     assert on_line == 1.0 and on_floor == 0.0
 
 
+def test_black_tape_stands_out_within_a_shadow_and_the_shadow_does_not():
+    pixels = bands_of((150, 150, 150), (45, 45, 45), line_columns=slice(0, 200))
+    pixels.reshape(BANDS, ROWS, ROW_WIDTH, 3)[:, :, 90:100] = 12
+    gains = line_colour.white_balance(pixels, range(BANDS))
+    mask, _, model = line_colour.classify('black', pixels, gains, ROW_WIDTH, range(BANDS))
+    # Against the band's floor the whole shadow is the line's colour ...
+    assert mask.reshape(BANDS, ROWS, ROW_WIDTH)[:, :, 10:190].all()
+    # ... against the shadow itself only the tape is.
+    stretch = pixels.reshape(BANDS, ROWS, ROW_WIDTH, 3)[2, :, :200].astype(np.float32)
+    strength = line_colour.strength_within(model, stretch, 2)
+    assert (strength[:, 90:100] >= 1.0).all()
+    assert (strength[:, :85] < 1.0).all() and (strength[:, 105:] < 1.0).all()
+
+
+@pytest.mark.parametrize('preset', ('yellow', 'white'))
+def test_only_black_tape_is_looked_for_within_a_stretch(preset):
+    pixels = bands_of((120, 120, 120), (230, 230, 230))
+    gains = line_colour.white_balance(pixels, range(BANDS))
+    _, _, model = line_colour.classify(preset, pixels, gains, ROW_WIDTH, range(BANDS))
+    stretch = pixels.reshape(BANDS, ROWS, ROW_WIDTH, 3)[0].astype(np.float32)
+    assert line_colour.strength_within(model, stretch, 0) is None
+
+
 @pytest.mark.parametrize('preset, line_grey', (('white', 230), ('black', 25)))
 def test_grey_images_show_white_and_black_tape(preset, line_grey):
     pixels = bands_of((120, 120, 120), (line_grey,) * 3, grey=True)

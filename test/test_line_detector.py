@@ -561,6 +561,54 @@ def test_two_tapes_a_hand_apart_stay_two_lines():
                zip(centroids_px(detection), centroids_px(middle)))
 
 
+NARROW_TAPE_M = 0.05
+LIGHT_FLOOR_BGR = (150, 150, 150)
+
+
+def black_tape_scene(polylines, width_m=NARROW_TAPE_M, shadow=None):
+    """
+    Return black tape on a light floor, with camera noise.
+
+    :param shadow: None, or (from, to, darkening): the floor between those distances ahead
+        (metres) darkened by that share, tape and all, as a shadow across the view.
+    """
+    image = scenes.scene(polylines, width_m=width_m, line_bgr=BLACK_BGR,
+                         floor_bgr=LIGHT_FLOOR_BGR).astype(np.float64)
+    if shadow is not None:
+        near_m, far_m, darkening = shadow
+        ahead_m, _ = scenes.floor_points()
+        with np.errstate(invalid='ignore'):
+            image[(ahead_m >= near_m) & (ahead_m <= far_m)] *= 1.0 - darkening
+    return scenes.add_noise(image.astype(np.uint8), 3.0)
+
+
+@pytest.mark.parametrize('shadow', ((0.35, 0.65, 0.7), (0.55, 0.85, 0.7), (0.4, 0.55, 0.75)),
+                         ids=('near', 'far', 'narrow_deep'))
+def test_black_tape_is_followed_through_a_deep_shadow_across_it(shadow):
+    # A shadow 70% deep is as much darker than the floor as the tape: the black preset takes
+    # it all. Within it the tape is darker still, and it is that the detector follows.
+    config = DetectorConfig(line_colour='black', line_width_m=NARROW_TAPE_M)
+    ahead = [scenes.straight_line(0.0)]
+    clean = LineDetector(config).detect(black_tape_scene(ahead), 'bgr8', scenes.KINECT)
+    shaded = LineDetector(config).detect(black_tape_scene(ahead, shadow=shadow), 'bgr8',
+                                         scenes.KINECT)
+    assert shaded.confidence > 0.9
+    assert centroids_px(shaded) == pytest.approx(centroids_px(clean), abs=1.0)
+
+
+@pytest.mark.parametrize('side', (1.0, -1.0), ids=('left', 'right'))
+def test_wide_black_tape_running_across_the_view_is_not_taken_for_a_shadow(side):
+    # The leg after a square corner fills its band across the view, dark all over: nothing
+    # stands out within it, so it stays the line's stripe there.
+    config = DetectorConfig(line_colour='black')
+    corner = [[(-0.5, 0.0), (0.55, 0.0), (0.55, 3.0 * side)]]
+    detection = LineDetector(config).detect(
+        black_tape_scene(corner, width_m=scenes.LINE_WIDTH_M), 'bgr8', scenes.KINECT)
+    far_x_px = [band.centroid_x_px for band in detection.seen_bands][-1]
+    # Where the leg leaves the view, not on the approach straight ahead.
+    assert side * (CENTRE_COLUMN - far_x_px) > 80.0
+
+
 def scenes_line_detection(lateral_m):
     """Return the detection of a lone straight line at a lateral offset, by a new detector."""
     return LineDetector().detect(scenes.scene([scenes.straight_line(lateral_m)]), 'bgr8',

@@ -25,7 +25,8 @@ TARGET_SOURCES = {'yellow': None, 'white': ('ev3-whitelane',), 'black': ('kejdi-
 # Frames no robot camera takes, scored on their own (expected to fail, and reported).
 NOT_A_ROBOT_VIEW = {
     'kejdi_robot_on_track_1.png': 'a phone photo from above with the robot itself on the tape: '
-                                  'its wheels and chassis are taken for tape in the far bands',
+                                  'its wheel, cable and chassis are taken for tape in the middle '
+                                  'bands',
 }
 
 
