@@ -148,6 +148,10 @@ FULL_LINK_SUPPORT = 0.6
 # How deep beyond the band the turn of a hairpin may lie, as shares of half the distance
 # between its arms (the arc's depth depends on the bend's shape and the camera's view).
 HAIRPIN_DEPTH_SHARES = (0.15, 0.3, 0.5, 0.75, 1.0)
+# Rows between the samples of the floor's middle between two arms, where a hairpin's turn
+# is looked for; the samples are taken on the middle itself.
+TURN_STEP_PX = 2.0
+ON_THE_MIDDLE = np.array([0.0])
 # Where the floor must show beside such an arc, in half widths of the line either side (a
 # bright patch or a wall joins any two stripes; only a thin line joins them along an arc).
 BESIDE_LINE_OFFSETS = np.array([-3.0, 3.0])
@@ -433,6 +437,8 @@ class _BandPlan:
     centre_px: float
     jump: float
     has_geometry: bool
+    # The image row of the floor's horizon, or None without geometry.
+    horizon_px: float | None = None
 
     def point(self, band: int, x_px: float) -> tuple:
         """Return where a stripe's centroid at a column of a band stands (see the fields)."""
@@ -708,7 +714,8 @@ class LineDetector:
                 left_per_px=tuple(geometry.floor_point(geometry.cx_px + 1.0, centre)[1]
                                   for centre in centres),
                 centre_px=geometry.cx_px,
-                jump=config.max_stripe_jump_m, has_geometry=True)
+                jump=config.max_stripe_jump_m, has_geometry=True,
+                horizon_px=geometry.horizon_row_px)
         self._plans = {geometry: plan}
         return plan
 
@@ -984,8 +991,12 @@ class LineDetector:
         chosen = {id(candidate) for candidate in chain}
         by_band = {candidate.band: candidate for candidate in chain}
         # The other arm of a bend the chain takes is the same line, not a rival.
+        neighbours = {candidate.band: chain[position + 1 if position + 1 < len(chain) else
+                                            position - 1] if len(chain) > 1 else None
+                      for position, candidate in enumerate(chain)}
         rivals = [[candidate for candidate in band if id(candidate) not in chosen and not (
-            candidate.band in by_band and support.joined(by_band[candidate.band], candidate))]
+            candidate.band in by_band and support.joined(
+                by_band[candidate.band], candidate, neighbours[candidate.band]))]
             for band in candidates]
         rival_score, rival = _best_chain(rivals, plan, self._previous_heading, support)
         continuation = []
@@ -1457,18 +1468,23 @@ class _LinkSupport:
                 return straight, True
         return straight, True
 
-    def joined(self, chosen, other) -> bool:
+    def joined(self, chosen, other, neighbour=None) -> bool:
         """
         Tell whether two stripes of one band are the two arms of one bend.
 
         Where the line turns back (a hairpin, a U seen from above), the band crosses it twice.
-        The arms are joined by line-coloured pixels along an arc below or above the band; a
-        second line is not.
+        The arms are joined by line-coloured pixels along an arc below or above the band, and
+        the turn crosses the floor's middle between them on that side; a second line does
+        neither.
+
+        :param neighbour: the chain's stripe next to ``chosen`` (the arms' direction), or None.
         """
         half_px = 0.5 * abs(other.x_px - chosen.x_px)
         along = (np.arange(MAX_LINK_SAMPLES) + 0.5) / MAX_LINK_SAMPLES
+        sides = [side for side in (1.0, -1.0)
+                 if self._turn_between(chosen, other, neighbour, side)]
         for share in HAIRPIN_DEPTH_SHARES:
-            for side in (1.0, -1.0):
+            for side in sides:
                 # A quadratic Bezier arc whose middle lies that deep beyond the band.
                 control_x = 0.5 * (chosen.x_px + other.x_px)
                 control_y = chosen.y_px + side * 2.0 * share * half_px
@@ -1489,6 +1505,36 @@ class _LinkSupport:
                                  across) <= 1.0 - FULL_LINK_SUPPORT:
                     return True
         return False
+
+    def _turn_between(self, chosen, other, neighbour, side) -> bool:
+        """
+        Tell whether the line crosses the floor's middle between two stripes of a band.
+
+        Two parallel lines run on each side of their middle, in the image toward their
+        vanishing point on the horizon; the turn of a hairpin crosses it. The middle is
+        followed beyond the band on one side (1 below, -1 above) as far as the image goes,
+        every TURN_STEP_PX rows: the turn may lie beyond the arcs' reach.
+
+        :param neighbour: the chain's stripe next to ``chosen``, which gives the arms'
+            direction (their vanishing point), or None: then the middle is an image column.
+        """
+        last_row = self._image.shape[0] - 1
+        end = last_row + TURN_STEP_PX if side > 0 else -TURN_STEP_PX
+        rows = np.arange(chosen.y_px + side * TURN_STEP_PX, end, side * TURN_STEP_PX)
+        rows = rows[(rows >= 0) & (rows <= last_row)]
+        if not len(rows):
+            return False
+        middle_x = 0.5 * (chosen.x_px + other.x_px)
+        horizon = self._plan.horizon_px
+        columns_per_row = 0.0
+        if neighbour is not None and horizon is not None and neighbour.y_px != chosen.y_px:
+            vanishing_x = chosen.x_px + (neighbour.x_px - chosen.x_px) * (
+                horizon - chosen.y_px) / (neighbour.y_px - chosen.y_px)
+            columns_per_row = (vanishing_x - middle_x) / (horizon - chosen.y_px)
+        columns = middle_x + columns_per_row * (rows - chosen.y_px)
+        # On the middle itself: farther up the arms, narrowing with distance, come nearer to
+        # it than the band's half width.
+        return self._support(columns, rows, chosen, other, ON_THE_MIDDLE) > 0.0
 
     def _path_support(self, waypoints, near, far) -> float:
         """Return the support along a path of straight pieces from a stripe to another."""

@@ -596,6 +596,33 @@ def test_black_tape_is_followed_through_a_deep_shadow_across_it(shadow):
     assert centroids_px(shaded) == pytest.approx(centroids_px(clean), abs=1.0)
 
 
+def hairpin(turn_at_m, half_gap_m, points=40):
+    """Return a hairpin's centre: arms half_gap_m either side, their turn turn_at_m ahead."""
+    angles = np.linspace(-math.pi / 2, math.pi / 2, points)
+    turn = [(turn_at_m + half_gap_m * math.cos(angle), half_gap_m * math.sin(angle))
+            for angle in angles]
+    return [(-0.5, -half_gap_m)] + turn + [(-0.5, half_gap_m)]
+
+
+@pytest.mark.parametrize('half_gap_m', (0.05, 0.1))
+@pytest.mark.parametrize('offset_m', (0.0, 0.05))
+def test_two_parallel_tapes_are_two_lines_the_follower_doubts(half_gap_m, offset_m):
+    # Seen in perspective, two parallel tapes pass for the two arms of a hairpin whose turn
+    # lies beyond the view; but nothing crosses the floor between them.
+    config = DetectorConfig(line_width_m=NARROW_TAPE_M)
+    image = scenes.scene([scenes.straight_line(offset_m - half_gap_m),
+                          scenes.straight_line(offset_m + half_gap_m)], width_m=NARROW_TAPE_M)
+    assert LineDetector(config).detect(image, 'bgr8', scenes.KINECT).confidence < 0.3
+
+
+@pytest.mark.parametrize('half_gap_m', (0.05, 0.1))
+def test_the_arms_of_a_hairpin_whose_turn_is_in_view_are_one_line(half_gap_m):
+    # The same two tapes joined by a turn beyond the bands (1.3 m ahead): one line.
+    config = DetectorConfig(line_width_m=NARROW_TAPE_M)
+    image = scenes.scene([hairpin(1.2, half_gap_m)], width_m=NARROW_TAPE_M)
+    assert LineDetector(config).detect(image, 'bgr8', scenes.KINECT).confidence > 0.9
+
+
 @pytest.mark.parametrize('side', (1.0, -1.0), ids=('left', 'right'))
 def test_wide_black_tape_running_across_the_view_is_not_taken_for_a_shadow(side):
     # The leg after a square corner fills its band across the view, dark all over: nothing
