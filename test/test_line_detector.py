@@ -582,16 +582,22 @@ def black_tape_scene(polylines, width_m=NARROW_TAPE_M, shadow=None):
     return scenes.add_noise(image.astype(np.uint8), 3.0)
 
 
+@pytest.mark.parametrize('encoding', ('bgr8', 'mono8'))
 @pytest.mark.parametrize('shadow', ((0.35, 0.65, 0.7), (0.55, 0.85, 0.7), (0.4, 0.55, 0.75)),
                          ids=('near', 'far', 'narrow_deep'))
-def test_black_tape_is_followed_through_a_deep_shadow_across_it(shadow):
+def test_black_tape_is_followed_through_a_deep_shadow_across_it(shadow, encoding):
     # A shadow 70% deep is as much darker than the floor as the tape: the black preset takes
     # it all. Within it the tape is darker still, and it is that the detector follows.
     config = DetectorConfig(line_colour='black', line_width_m=NARROW_TAPE_M)
     ahead = [scenes.straight_line(0.0)]
-    clean = LineDetector(config).detect(black_tape_scene(ahead), 'bgr8', scenes.KINECT)
-    shaded = LineDetector(config).detect(black_tape_scene(ahead, shadow=shadow), 'bgr8',
-                                         scenes.KINECT)
+
+    def detect(image):
+        if encoding == 'mono8':
+            image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        return LineDetector(config).detect(image, encoding, scenes.KINECT)
+
+    clean = detect(black_tape_scene(ahead))
+    shaded = detect(black_tape_scene(ahead, shadow=shadow))
     assert shaded.confidence > 0.9
     assert centroids_px(shaded) == pytest.approx(centroids_px(clean), abs=1.0)
 
