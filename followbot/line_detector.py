@@ -1481,10 +1481,12 @@ class _LinkSupport:
         """
         half_px = 0.5 * abs(other.x_px - chosen.x_px)
         along = (np.arange(MAX_LINK_SAMPLES) + 0.5) / MAX_LINK_SAMPLES
-        sides = [side for side in (1.0, -1.0)
-                 if self._turn_between(chosen, other, neighbour, side)]
+        # Whether the turn crosses the middle on each side, once asked.
+        turns = {}
         for share in HAIRPIN_DEPTH_SHARES:
-            for side in sides:
+            for side in (1.0, -1.0):
+                if turns.get(side) is False:
+                    continue
                 # A quadratic Bezier arc whose middle lies that deep beyond the band.
                 control_x = 0.5 * (chosen.x_px + other.x_px)
                 control_y = chosen.y_px + side * 2.0 * share * half_px
@@ -1502,7 +1504,11 @@ class _LinkSupport:
                 length = np.maximum(np.hypot(tangent_x, tangent_y), 1e-9)
                 across = (-tangent_y / length, tangent_x / length)
                 if self._support(x_px, y_px, chosen, other, BESIDE_LINE_OFFSETS,
-                                 across) <= 1.0 - FULL_LINK_SUPPORT:
+                                 across) > 1.0 - FULL_LINK_SUPPORT:
+                    continue
+                if side not in turns:
+                    turns[side] = self._turn_between(chosen, other, neighbour, side)
+                if turns[side]:
                     return True
         return False
 
