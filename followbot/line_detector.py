@@ -1533,7 +1533,8 @@ class _LinkSupport:
         middle_x = 0.5 * (chosen.x_px + other.x_px)
         horizon = self._plan.horizon_px
         columns_per_row = 0.0
-        if neighbour is not None and horizon is not None and neighbour.y_px != chosen.y_px:
+        if (neighbour is not None and horizon is not None and horizon < chosen.y_px
+                and neighbour.y_px != chosen.y_px):
             vanishing_x = chosen.x_px + (neighbour.x_px - chosen.x_px) * (
                 horizon - chosen.y_px) / (neighbour.y_px - chosen.y_px)
             columns_per_row = (vanishing_x - middle_x) / (horizon - chosen.y_px)
