@@ -1518,8 +1518,8 @@ class _LinkSupport:
 
         Two parallel lines run on each side of their middle, in the image toward their
         vanishing point on the horizon; the turn of a hairpin crosses it. The middle is
-        followed beyond the band on one side (1 below, -1 above) as far as the image goes,
-        every TURN_STEP_PX rows: the turn may lie beyond the arcs' reach.
+        followed beyond the band on one side (1 below, -1 above) as far as the image shows
+        the floor, every TURN_STEP_PX rows: the turn may lie beyond the arcs' reach.
 
         :param neighbour: the chain's stripe next to ``chosen``, which gives the arms'
             direction (their vanishing point), or None: then the middle is an image column.
@@ -1527,11 +1527,13 @@ class _LinkSupport:
         last_row = self._image.shape[0] - 1
         end = last_row + TURN_STEP_PX if side > 0 else -TURN_STEP_PX
         rows = np.arange(chosen.y_px + side * TURN_STEP_PX, end, side * TURN_STEP_PX)
-        rows = rows[(rows >= 0) & (rows <= last_row)]
+        horizon = self._plan.horizon_px
+        # The turn lies on the floor: above the horizon a yellow wall would pass for it.
+        first_row = 0 if horizon is None else max(0.0, math.floor(horizon) + 1.0)
+        rows = rows[(rows >= first_row) & (rows <= last_row)]
         if not len(rows):
             return False
         middle_x = 0.5 * (chosen.x_px + other.x_px)
-        horizon = self._plan.horizon_px
         columns_per_row = 0.0
         if (neighbour is not None and horizon is not None and horizon < chosen.y_px
                 and neighbour.y_px != chosen.y_px):
