@@ -147,7 +147,7 @@ def classify(colour: str, band_pixels: np.ndarray, gains: np.ndarray, row_width:
         raise ValueError(f'A grey image shows no {colour} line: use line_colour white or '
                          'black.')
     grey = band_pixels.ndim == 2
-    pixels = _smoothed(band_pixels.astype(np.float32), row_width)
+    pixels = smoothed(band_pixels.astype(np.float32), row_width)
     if colour == 'custom':
         model = FloorModel(colour, grey, gains, None, None, hsv_bounds)
     else:
@@ -220,11 +220,8 @@ def strength_within(model: FloorModel, pixels: np.ndarray, band: int):
     if model.colour not in SHADOWED_COLOURS:
         return None
     feature = _feature(model.colour, _balanced(pixels, model.gains, model.grey), model.grey)
-    outer, inner = np.percentile(feature, [100 - value for value in FLOOR_PERCENTILES], axis=1,
-                                 keepdims=True)
-    rows = len(pixels)
-    local = model._replace(typical=_floor_value(outer, inner, floor_below=False),
-                           noise=np.repeat(model.noise[band:band + 1], rows, axis=0))
+    local = model._replace(typical=_floor_value(feature, floor_below=False, axis=1),
+                           noise=np.repeat(model.noise[band:band + 1], len(pixels), axis=0))
     return pixel_strength(local, pixels)
 
 
@@ -260,7 +257,7 @@ def _feature(colour: str, balanced: np.ndarray, grey: bool) -> np.ndarray:
     return np.maximum(np.maximum(red, green), blue)
 
 
-def _smoothed(pixels: np.ndarray, row_width: int) -> np.ndarray:
+def smoothed(pixels: np.ndarray, row_width: int) -> np.ndarray:
     """
     Return band pixels averaged along their row over SMOOTHING_KERNEL_PX (noise / 2.2).
 
@@ -292,25 +289,32 @@ def _floor_statistics(feature: np.ndarray, bands_on_floor, row_width: int,
     :param floor_below: whether the floor lies below the line in this feature.
     :return: (typical floor value, standard deviation of its pixel noise), each (bands, 1).
     """
-    percentiles = (FLOOR_PERCENTILES if floor_below
-                   else [100 - value for value in FLOOR_PERCENTILES])
     sample = feature[:, ::FLOOR_SAMPLE_STEP]
-    outer, inner = np.percentile(sample, percentiles, axis=1, keepdims=True)
-    typical = _floor_value(outer, inner, floor_below)
+    typical = _floor_value(sample, floor_below, axis=1)
     rows = feature.reshape(len(feature), -1, row_width)
     steps = np.abs(rows[:, :, 1::NOISE_SAMPLE_STEP] - rows[:, :, :-1:NOISE_SAMPLE_STEP])
     noise = (MAD_TO_SIGMA / np.sqrt(2.0)) * np.median(
         steps.reshape(len(feature), -1), axis=1, keepdims=True)
     chosen = list(bands_on_floor) or list(range(len(feature)))
-    common_typical = _floor_value(*np.percentile(sample[chosen], percentiles), floor_below)
+    common_typical = _floor_value(sample[chosen], floor_below)
     common_noise = float(np.median(noise[chosen]))
     apart = (typical - common_typical) if floor_below else (common_typical - typical)
     line_filled = apart > NOISE_SIGMAS * max(common_noise, MIN_COMMON_SIGMA)
     return np.where(line_filled, common_typical, typical), noise
 
 
-def _floor_value(outer, inner, floor_below: bool):
-    """Return a normal distribution's median from its 10th and 25th (or mirrored) percentiles."""
+def _floor_value(samples: np.ndarray, floor_below: bool, axis=None):
+    """
+    Return the floor's typical value among samples of a feature, the line's among them.
+
+    The median of a normal distribution, found from its 10th and 25th percentiles (90th and
+    75th when the floor lies above the line), the side the line does not reach.
+
+    :param axis: the axis the samples lie along (kept, of length 1), or None for all.
+    """
+    percentiles = (FLOOR_PERCENTILES if floor_below
+                   else [100 - value for value in FLOOR_PERCENTILES])
+    outer, inner = np.percentile(samples, percentiles, axis=axis, keepdims=axis is not None)
     offset = QUARTILE_SIGMAS * np.abs(inner - outer) / QUANTILE_GAP_SIGMAS
     return inner + offset if floor_below else inner - offset
 

@@ -859,7 +859,7 @@ class LineDetector:
         pixels = image[top:bottom, first:last].astype(np.float32)
         if channels > _GREY_CHANNELS:
             pixels = pixels[..., [blue, 1, red]]
-        pixels = cv2.blur(pixels, line_colour.SMOOTHING_KERNEL_PX)[:, start - first:end - first]
+        pixels = line_colour.smoothed(pixels, last - first)[:, start - first:end - first]
         top_down = len(self._bands) - 1 - index
         strength = line_colour.strength_within(self._floor_model, pixels, top_down)
         if strength is None:
