@@ -47,6 +47,7 @@ from followbot.transport import (environment_without_profile, keep_large_buffers
 from followbot_sim import real_frames
 from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.course_file import load_course
+from followbot_sim.domains import DomainsTaken, MAX_DOMAIN_ID, reserve_domains
 from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.realism import CLEAN, PRESET_NAMES, realise, Realism
 from followbot_sim.score import score_values
@@ -85,6 +86,10 @@ KIB_PER_MIB = 1024
 PROCESS_GRACE_S = 60.0
 STOP_GRACE_S = 5.0
 POLL_S = 0.05
+# Default domain of the runs: a free one in this range, reserved apart from every other
+# benchmark, scorecard and test run on the machine.
+FIRST_DOMAIN_ID = 100
+DOMAIN_ID_SPREAD = 20
 # How long the score the simulator publishes as it ends may take to arrive.
 LAST_SCORE_WAIT_S = 0.5
 
@@ -652,8 +657,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='simulation: comma-separated realism presets to run, side by side '
                              f"(default: {','.join(SIMULATION_REALISM)})")
     parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
-                        help='ROS domain of the runs, which take turns in it (default: from '
-                             'the process id, in 100..199)')
+                        help='ROS domain of the runs, which take turns in it (default: a free '
+                             f'one in {FIRST_DOMAIN_ID}-{FIRST_DOMAIN_ID + DOMAIN_ID_SPREAD - 1}, '
+                             'which no other benchmark, scorecard or test run then takes)')
     parser.add_argument('--real-frame-pictures', type=Path, default=None, metavar='DIR',
                         help='real_frames: save a schematic of every frame not all right '
                              "(labels and verdicts, none of the frame's pixels) in DIR")
@@ -676,10 +682,15 @@ def parse_arguments(argv=None) -> argparse.Namespace:
             or options.simulated_seconds < 3 or any(rate <= 0 for rate in options.rates)):
         parser.error('--frames, --repeats and --latency-frames must be at least 1, '
                      '--simulated-seconds at least 3, and rates above 0')
+    options.domain_reservation = None
     if options.domain_id is None:
-        options.domain_id = 100 + os.getpid() % 100
-    elif not 0 <= options.domain_id <= 232:
-        parser.error('--domain-id must be in 0..232')
+        try:
+            options.domain_reservation = reserve_domains(1, FIRST_DOMAIN_ID, DOMAIN_ID_SPREAD)
+        except DomainsTaken as error:
+            parser.error(f'{error} Give one with --domain-id.')
+        options.domain_id = options.domain_reservation.first
+    elif not 0 <= options.domain_id <= MAX_DOMAIN_ID:
+        parser.error(f'--domain-id must be in 0..{MAX_DOMAIN_ID}')
     return options
 
 

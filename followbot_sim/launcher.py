@@ -30,6 +30,7 @@ from followbot.transport import environment_with_profile, keep_large_buffers, us
 from followbot_sim import soak
 from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.course_library import COURSES
+from followbot_sim.domains import MAX_DOMAIN_ID
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
 from followbot_sim.run_recording import add_record_options, drain, HoldReport, RunRecording
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
@@ -136,8 +137,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
         parser.error('--duration and --real-time-factor must be >= 0, --report-period > 0')
     if options.soak_period is not None and (options.soak_period <= 0 or options.duration == 0):
         parser.error('--soak-period must be > 0 and needs a --duration')
-    if options.domain_id is not None and not 0 <= options.domain_id <= 232:
-        parser.error('--domain-id must be in 0..232')
+    if options.domain_id is not None and not 0 <= options.domain_id <= MAX_DOMAIN_ID:
+        parser.error(f'--domain-id must be in 0..{MAX_DOMAIN_ID}')
     try:
         options.configs = follower_configurations(options.configs)
     except ValueError as error:

@@ -39,6 +39,7 @@ from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
+from followbot_sim.domains import DomainsTaken, MAX_DOMAIN_ID, reserve_domains
 from followbot_sim.perception_monitor import PerceptionMonitor
 from followbot_sim.plots import write_plots
 from followbot_sim.realism import PRESET_NAMES
@@ -64,12 +65,10 @@ TIME_LIMIT_LAPS = 2.5
 # A run is stuck when its progress along the line gained less than this over the stuck window.
 STUCK_MIN_PROGRESS_M = 0.05
 DEFAULT_STUCK_AFTER_S = 30.0
-# Default domain of worker 0: the parent's pid spreads concurrent scorecards over 40 domains
-# above the test suite's usual ones.
+# Default domains of the workers: a block reserved in this range, apart from every other
+# scorecard, benchmark and test run on the machine.
 FIRST_DOMAIN_ID = 150
 DOMAIN_ID_SPREAD = 40
-# Largest ROS_DOMAIN_ID whose DDS ports fit in the port range on Linux.
-MAX_DOMAIN_ID = 232
 # Wall seconds the two nodes may take to discover each other before a run gives up.
 CONNECT_TIMEOUT_S = 30.0
 CONNECT_POLL_S = 0.05
@@ -932,7 +931,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='runs at a time, each in its own process (default: the CPU count)')
     parser.add_argument('--domain-id', type=_domain_id_option, default=None, metavar='ID',
                         help='ROS domain of the first worker; worker k uses ID + k (default: '
-                             f'{FIRST_DOMAIN_ID} + pid %% {DOMAIN_ID_SPREAD})')
+                             'the first free block in '
+                             f'{FIRST_DOMAIN_ID}-{FIRST_DOMAIN_ID + DOMAIN_ID_SPREAD - 1}, '
+                             'which no other scorecard, benchmark or test run then takes)')
     parser.add_argument('--time-limit-s', type=_positive, default=None, metavar='SECONDS',
                         help='simulated seconds a run may take (default: '
                              f'{TIME_LIMIT_LAPS:g} x course length / {BOOK_SPEED_MPS:g} m/s)')
@@ -982,8 +983,14 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                          f'{error.strerror or error}.')
     runs = len(options.scenarios) * len(options.configurations) * options.starts
     options.workers = min(options.jobs, runs)
+    options.domain_reservation = None
     if options.domain_id is None:
-        options.domain_id = FIRST_DOMAIN_ID + os.getpid() % DOMAIN_ID_SPREAD
+        try:
+            options.domain_reservation = reserve_domains(
+                options.workers, FIRST_DOMAIN_ID, max(DOMAIN_ID_SPREAD, options.workers))
+        except (DomainsTaken, ValueError) as error:
+            parser.error(f'{error} Give one with --domain-id.')
+        options.domain_id = options.domain_reservation.first
     if options.domain_id + options.workers - 1 > MAX_DOMAIN_ID:
         parser.error(f'--domain-id {options.domain_id} with {options.workers} workers needs '
                      f'domains up to {options.domain_id + options.workers - 1}; the largest is '

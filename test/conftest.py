@@ -1,16 +1,15 @@
 """Shared test helpers: an isolated ROS 2 context per test, and a node-plus-client harness."""
 
-import fcntl
 import os
 from pathlib import Path
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 # Sets MUJOCO_GL (EGL, headless) before mujoco is first imported.
 import followbot_sim  # noqa: F401, I100
+from followbot_sim.domains import reserve_domains
 from geometry_msgs.msg import Twist
 from hypothesis import HealthCheck, settings
 import mujoco
@@ -29,13 +28,12 @@ from std_srvs.srv import SetBool, Trigger
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
 # Keep DDS traffic on this machine and apart from other test runs and other ROS users: each
 # pytest process reserves its own block of domains (a scorecard's two workers use the run's
-# domain and the next) with a lock file, held until the process ends. A domain derived from
-# the process id alone was shared by two runs now and then: one run's follower then showed up
-# in the other's graph.
+# domain and the next) with lock files, held until the process ends, which the tools' default
+# domains respect too. A domain derived from the process id alone was shared by two runs now
+# and then: one run's follower then showed up in the other's graph.
 FIRST_TEST_DOMAIN_ID = 120
 TEST_DOMAIN_COUNT = 90
 DOMAINS_PER_RUN = 2
-DOMAIN_LOCKS_DIR = Path(tempfile.gettempdir()) / 'followbot-test-domains'
 WAIT_S = 30.0
 # How long a node process may take to stop after SIGINT.
 STOP_TIMEOUT_S = 15.0
@@ -60,32 +58,10 @@ _reserved_domain = {}
 
 def run_domain_id() -> int:
     """Return the ROS domain of this test run, unique among concurrent runs on the machine."""
-    if 'domain' not in _reserved_domain:
-        _reserved_domain['domain'], _reserved_domain['lock'] = _reserve_domains()
-    return _reserved_domain['domain']
-
-
-def _reserve_domains() -> tuple:
-    """
-    Lock the first free block of DOMAINS_PER_RUN domains, from one the process id picks.
-
-    :return: (the block's first domain, the open lock file, which holds it until closed).
-    :raises RuntimeError: when every block is held by another test run.
-    """
-    DOMAIN_LOCKS_DIR.mkdir(exist_ok=True)
-    blocks = TEST_DOMAIN_COUNT // DOMAINS_PER_RUN
-    for step in range(blocks):
-        domain = FIRST_TEST_DOMAIN_ID + (os.getpid() + step) % blocks * DOMAINS_PER_RUN
-        lock = open(DOMAIN_LOCKS_DIR / f'{domain}.lock', 'a')
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock.close()
-            continue
-        return domain, lock
-    raise RuntimeError(f'Every block of test domains {FIRST_TEST_DOMAIN_ID}-'
-                       f'{FIRST_TEST_DOMAIN_ID + TEST_DOMAIN_COUNT - 1} is held by another '
-                       f'test run (lock files in {DOMAIN_LOCKS_DIR}).')
+    if 'reservation' not in _reserved_domain:
+        _reserved_domain['reservation'] = reserve_domains(DOMAINS_PER_RUN, FIRST_TEST_DOMAIN_ID,
+                                                          TEST_DOMAIN_COUNT)
+    return _reserved_domain['reservation'].first
 
 
 def child_environment(domain_id: int | None = None, base: dict | None = None) -> dict:
