@@ -155,7 +155,7 @@ def colour_mask(image, config, geometry=None):
         centres = [start + (rows - 1) / 2.0 for start in starts]
         seen = geometry.line_width_px(centres, config.line_width_m) >= MIN_SEARCH_WIDTH_PX
         on_floor = [index for index, searched in enumerate(seen) if searched]
-    gains = line_colour.white_balance(strips, on_floor)
+    gains = line_colour.white_balance(strips, on_floor, config.line_colour)
     bounds = ((config.hue_min, config.saturation_min, config.value_min),
               (config.hue_max, config.saturation_max, config.value_max))
     strip_mask, _, _ = line_colour.classify(config.line_colour, strips, gains, width, on_floor,
@@ -351,7 +351,7 @@ def custom_bounds(image_bgr, sample, elsewhere):
     :return: ((hue, saturation, value) low, (hue, saturation, value) high), or None.
     """
     hsv = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2HSV)
-    gains = line_colour.white_balance(image_bgr.reshape(1, -1, 3), [0])
+    gains = line_colour.white_balance(image_bgr.reshape(1, -1, 3), [0], 'custom')
     balanced = np.clip(image_bgr.astype(np.float32) * gains, 0, HSV_CHANNEL_MAX).astype(np.uint8)
     balanced_hsv = cv2.cvtColor(balanced, cv2.COLOR_BGR2HSV)
     line = np.concatenate((hsv[sample.core], balanced_hsv[sample.core])).astype(np.int32)

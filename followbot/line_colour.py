@@ -9,8 +9,9 @@ the line's pixels are judged relative to the floor around them:
 1. The floor's colour in each band of rows is the per-channel median of a sample of its
    pixels (the line covers a small part of a band). Their median over the bands that see the
    floor estimates the light's colour; dividing it out (a grey-world white balance, its gains
-   kept within ``MAX_WHITE_BALANCE_GAIN``, as a coloured floor would otherwise pull the
-   balance far off) makes the floor neutral grey.
+   kept within ``MAX_WHITE_BALANCE_GAIN``, enough for a camera without white balance under a
+   warm or cold lamp, as a coloured floor would otherwise pull the balance far off) makes the
+   floor neutral grey.
 2. On the balanced colours each preset compares a pixel with its band's floor:
 
    - ``yellow``: yellowness ``min(red, green) - blue`` at least ``YELLOW_MIN_LEVELS`` above
@@ -51,7 +52,14 @@ PRESET_HSV_BOUNDS = {
 # more pixels, a sample of ~300 gives the same median to a level or two.
 FLOOR_SAMPLE_STEP = 8
 # The white balance corrects casts, not colours: each channel's gain stays within this factor.
-MAX_WHITE_BALANCE_GAIN = 1.2
+# A camera without white balance under a warm (2700 K) or cold (6500 K) lamp needs about 1.5:
+# with 1.2, worn yellow tape under a blue cast stayed cyan-grey and was lost. A floor that is
+# itself strongly coloured still cannot pull the balance further.
+MAX_WHITE_BALANCE_GAIN = 1.5
+# The custom preset's HSV bounds take the line's colours as the camera gives them in the first
+# look and balanced in the second: both must hold the line, and a balance far from the camera's
+# colours would widen them until they took a coloured floor too.
+MAX_CUSTOM_WHITE_BALANCE_GAIN = 1.2
 # Darker floors than this (8-bit level) say little about the light's colour.
 MIN_FLOOR_LEVEL = 8.0
 YELLOW_MIN_LEVELS = 18.0
@@ -84,13 +92,15 @@ NOISE_SAMPLE_STEP = 4
 MIN_COMMON_SIGMA = 4.0
 
 
-def white_balance(band_pixels: np.ndarray, bands_on_floor) -> np.ndarray:
+def white_balance(band_pixels: np.ndarray, bands_on_floor, colour: str) -> np.ndarray:
     """
     Return the gains that make the floor grey: a grey-world balance on the floor, bounded.
 
     :param band_pixels: (bands, pixels, 3) uint8 BGR, or (bands, pixels) grey.
     :param bands_on_floor: indices of the bands that see the floor (below the horizon); the
         balance is estimated from them (from all bands when empty).
+    :param colour: the preset, one of LINE_COLOURS: it bounds the gains
+        (MAX_CUSTOM_WHITE_BALANCE_GAIN for custom, else MAX_WHITE_BALANCE_GAIN).
     :return: float32 gains per channel (one gain of 1 for a grey image). The floor's colour
         is the median over those bands of each band's per-channel median: a band the line
         fills (the nearest, in the simulator) does not sway it.
@@ -103,8 +113,8 @@ def white_balance(band_pixels: np.ndarray, bands_on_floor) -> np.ndarray:
     grey = float(floor.mean())
     if grey < MIN_FLOOR_LEVEL:
         return np.ones(3, np.float32)
-    return np.clip(grey / np.maximum(floor, 1.0), 1.0 / MAX_WHITE_BALANCE_GAIN,
-                   MAX_WHITE_BALANCE_GAIN).astype(np.float32)
+    bound = MAX_CUSTOM_WHITE_BALANCE_GAIN if colour == 'custom' else MAX_WHITE_BALANCE_GAIN
+    return np.clip(grey / np.maximum(floor, 1.0), 1.0 / bound, bound).astype(np.float32)
 
 
 class FloorModel(NamedTuple):

@@ -731,7 +731,7 @@ class LineDetector:
         # The plan counts bands nearest first; the buffers hold them top down.
         on_floor = [count - 1 - index for index, searched in enumerate(plan.searched)
                     if searched]
-        gains = line_colour.white_balance(pixels, on_floor)
+        gains = line_colour.white_balance(pixels, on_floor, self._config.line_colour)
         bounds = (tuple(int(value) for value in self._lower_hsv),
                   tuple(int(value) for value in self._upper_hsv))
         mask, strength, self._floor_model = line_colour.classify(

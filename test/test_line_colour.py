@@ -35,7 +35,7 @@ def line_share(mask):
 
 def judge(colour, pixels, **options):
     """Classify band pixels with a preset, white-balanced on all bands."""
-    gains = line_colour.white_balance(pixels, range(BANDS))
+    gains = line_colour.white_balance(pixels, range(BANDS), colour)
     mask, _, _ = line_colour.classify(colour, pixels, gains, ROW_WIDTH, range(BANDS), **options)
     return line_share(mask)
 
@@ -49,8 +49,10 @@ def judge(colour, pixels, **options):
     ((120, 125, 125), (95, 135, 140)),       # faded tape (saturation ~0.32)
     # A magenta carpet pulls the balance so far that the tape would turn lime (home preset).
     ((32, 30, 45), (32, 122, 117)),
+    # Worn tape on a carpet, a cold lamp and no white balance: the camera shows it cyan-grey.
+    ((106, 83, 65), (140, 142, 113)),
 ), ids=('course', 'dark_mat', 'warm_cast', 'green_cast', 'pale_tape', 'faded_tape',
-        'magenta_carpet'))
+        'magenta_carpet', 'cold_cast_no_white_balance'))
 def test_yellow_tape_is_found_and_its_floor_is_not(floor_bgr, line_bgr):
     on_line, on_floor = judge('yellow', bands_of(floor_bgr, line_bgr))
     assert on_line == 1.0
@@ -97,7 +99,7 @@ def test_black_tape_is_darker_than_its_floor(floor_bgr, line_bgr):
 def test_black_tape_stands_out_within_a_shadow_and_the_shadow_does_not():
     pixels = bands_of((150, 150, 150), (45, 45, 45), line_columns=slice(0, 200))
     pixels.reshape(BANDS, ROWS, ROW_WIDTH, 3)[:, :, 90:100] = 12
-    gains = line_colour.white_balance(pixels, range(BANDS))
+    gains = line_colour.white_balance(pixels, range(BANDS), 'black')
     mask, _, model = line_colour.classify('black', pixels, gains, ROW_WIDTH, range(BANDS))
     # Against the band's floor the whole shadow is the line's colour ...
     assert mask.reshape(BANDS, ROWS, ROW_WIDTH)[:, :, 10:190].all()
@@ -111,7 +113,7 @@ def test_black_tape_stands_out_within_a_shadow_and_the_shadow_does_not():
 @pytest.mark.parametrize('preset', ('yellow', 'white'))
 def test_only_black_tape_is_looked_for_within_a_stretch(preset):
     pixels = bands_of((120, 120, 120), (230, 230, 230))
-    gains = line_colour.white_balance(pixels, range(BANDS))
+    gains = line_colour.white_balance(pixels, range(BANDS), preset)
     _, _, model = line_colour.classify(preset, pixels, gains, ROW_WIDTH, range(BANDS))
     stretch = pixels.reshape(BANDS, ROWS, ROW_WIDTH, 3)[0].astype(np.float32)
     assert line_colour.strength_within(model, stretch, 0) is None
@@ -162,18 +164,22 @@ def test_custom_bounds_are_applied_to_white_balanced_colours():
     assert on_line == 1.0 and on_floor == 0.0
 
 
-def test_the_white_balance_is_bounded_and_neutral_on_grey():
-    assert line_colour.white_balance(bands_of((116, 116, 116)), range(BANDS)) == (
+@pytest.mark.parametrize('preset, bound', (
+    ('yellow', line_colour.MAX_WHITE_BALANCE_GAIN),
+    ('custom', line_colour.MAX_CUSTOM_WHITE_BALANCE_GAIN),
+))
+def test_the_white_balance_is_bounded_and_neutral_on_grey(preset, bound):
+    assert line_colour.white_balance(bands_of((116, 116, 116)), range(BANDS), preset) == (
         pytest.approx([1.0, 1.0, 1.0]))
-    gains = line_colour.white_balance(bands_of((20, 120, 200)), range(BANDS))
-    assert gains.max() <= line_colour.MAX_WHITE_BALANCE_GAIN + 1e-6
-    assert gains.min() >= 1.0 / line_colour.MAX_WHITE_BALANCE_GAIN - 1e-6
-    assert list(line_colour.white_balance(bands_of((1, 1, 1), grey=True), ())) == [1.0]
+    gains = line_colour.white_balance(bands_of((20, 120, 200)), range(BANDS), preset)
+    assert gains.max() == pytest.approx(bound)
+    assert gains.min() == pytest.approx(1.0 / bound)
+    assert list(line_colour.white_balance(bands_of((1, 1, 1), grey=True), (), preset)) == [1.0]
 
 
 def test_pixel_strength_judges_any_pixels_against_their_bands_floor():
     pixels = bands_of((40, 42, 45), (30, 190, 210))
-    gains = line_colour.white_balance(pixels, range(BANDS))
+    gains = line_colour.white_balance(pixels, range(BANDS), 'yellow')
     _, _, model = line_colour.classify('yellow', pixels, gains, ROW_WIDTH, range(BANDS))
     samples = np.array([[30, 190, 210], [40, 42, 45]], np.float32)
     strength = line_colour.pixel_strength(model, samples, np.array([0, 5]))
@@ -184,7 +190,7 @@ def test_custom_bounds_judge_a_list_of_pixels_too():
     # The detector judges the pixels between two bands' stripes as a flat list.
     bounds = ((100, 150, 50), (130, 255, 255))
     pixels = bands_of((116, 116, 116), (200, 60, 20))
-    gains = line_colour.white_balance(pixels, range(BANDS))
+    gains = line_colour.white_balance(pixels, range(BANDS), 'custom')
     _, _, model = line_colour.classify('custom', pixels, gains, ROW_WIDTH, range(BANDS),
                                        hsv_bounds=bounds)
     samples = np.array([[200, 60, 20], [116, 116, 116]], np.float32)

@@ -811,6 +811,18 @@ def test_a_floor_passing_the_colour_bounds_under_a_cast_is_not_the_line():
     assert centroids_px(detection) == pytest.approx(centroids_px(expected), abs=2.0)
 
 
+def test_worn_tape_under_a_cold_lamp_without_white_balance_is_followed():
+    # The colours of the harsh preset's seed 2 camera: a blue cast that leaves the yellow tape
+    # cyan-grey as the camera gives it (gains of 1.2 could not bring it back).
+    image = scenes.add_noise(scenes.scene([scenes.straight_line(lateral_m=0.1)],
+                                          floor_bgr=(106, 83, 65), line_bgr=(140, 142, 113)), 3.0)
+    detection = LineDetector().detect(image, 'bgr8', scenes.KINECT)
+    expected = LineDetector().detect(scenes.scene([scenes.straight_line(lateral_m=0.1)]),
+                                     'bgr8', scenes.KINECT)
+    assert detection.confidence > 0.7
+    assert centroids_px(detection) == pytest.approx(centroids_px(expected), abs=2.0)
+
+
 def test_a_speck_is_not_the_line_even_with_the_books_min_area_of_one_pixel():
     # The book's band and min_area_px 1: a single yellow pixel near the centre must not win
     # over the real line.
