@@ -38,16 +38,27 @@ def test_a_second_run_gets_a_block_of_domains_apart_from_this_runs():
 
 
 def test_a_block_is_never_shared_and_is_free_again_once_released(locks_dir):
-    first = reserve_domains(3, 10, 5)
+    first = reserve_domains(3, 10, 3)
+    assert first.first == 10
+    # Whichever block the process id points the search at, the only free one is 13-14.
     second = reserve_domains(2, 10, 5)
-    held = set(range(first.first, first.first + 3))
-    assert held.isdisjoint(range(second.first, second.first + 2))
-    assert held | set(range(second.first, second.first + 2)) == set(range(10, 15))
+    assert second.first == 13
     with pytest.raises(DomainsTaken, match='10-14'):
         reserve_domains(1, 10, 5)
     second.release()
     with reserve_domains(2, 10, 5) as again:
-        assert again.first == second.first
+        assert again.first == 13
+    first.release()
+
+
+@pytest.mark.parametrize('pid', range(6))
+def test_the_search_goes_round_the_range_from_where_the_process_id_points(pid, locks_dir,
+                                                                          monkeypatch):
+    taken = reserve_domains(1, 12, 1)
+    monkeypatch.setattr(domains.os, 'getpid', lambda: pid)
+    with reserve_domains(2, 10, 5) as block:
+        assert 12 not in (block.first, block.first + 1)
+    taken.release()
 
 
 @pytest.mark.parametrize('count, first, span', [(0, 10, 5), (3, 10, 2), (1, -1, 5), (2, 230, 5)])
