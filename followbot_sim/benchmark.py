@@ -47,7 +47,7 @@ from followbot.transport import (environment_without_profile, keep_large_buffers
 from followbot_sim import real_frames
 from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.course_file import load_course
-from followbot_sim.domains import DomainsTaken, MAX_DOMAIN_ID, reserve_domains
+from followbot_sim.domains import MAX_DOMAIN_ID, reserve_default_domains
 from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.realism import CLEAN, PRESET_NAMES, realise, Realism
 from followbot_sim.score import score_values
@@ -684,10 +684,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                      '--simulated-seconds at least 3, and rates above 0')
     options.domain_reservation = None
     if options.domain_id is None:
-        try:
-            options.domain_reservation = reserve_domains(1, FIRST_DOMAIN_ID, DOMAIN_ID_SPREAD)
-        except DomainsTaken as error:
-            parser.error(f'{error} Give one with --domain-id.')
+        options.domain_reservation = reserve_default_domains(parser, 1, FIRST_DOMAIN_ID,
+                                                             DOMAIN_ID_SPREAD)
         options.domain_id = options.domain_reservation.first
     elif not 0 <= options.domain_id <= MAX_DOMAIN_ID:
         parser.error(f'--domain-id must be in 0..{MAX_DOMAIN_ID}')

@@ -33,7 +33,6 @@ class DomainReservation:
         :param locks: the open, locked files, one per domain of the block.
         """
         self.first = first
-        self.count = len(locks)
         self._locks = locks
 
     def release(self) -> None:
@@ -96,3 +95,19 @@ def reserve_domains(count: int, first: int, span: int) -> DomainReservation:
             lock.close()
     raise DomainsTaken(f'Every block of {count} domain(s) in {first}-{first + span - 1} holds '
                        f'one that another process uses (lock files in {LOCKS_DIR}).')
+
+
+def reserve_default_domains(parser, count: int, first: int, span: int) -> DomainReservation:
+    """
+    Reserve the domains of a command given no --domain-id, or end it with a usage error.
+
+    :param parser: the command's argparse.ArgumentParser, whose error() ends it.
+    :param count: how many consecutive domains the command needs.
+    :param first: the range's first domain.
+    :param span: how many domains the range holds.
+    :return: the reservation; keep it for as long as the command runs.
+    """
+    try:
+        return reserve_domains(count, first, span)
+    except (DomainsTaken, ValueError) as error:
+        parser.error(f'{error} Give one with --domain-id.')

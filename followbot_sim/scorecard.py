@@ -39,7 +39,7 @@ from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
-from followbot_sim.domains import DomainsTaken, MAX_DOMAIN_ID, reserve_domains
+from followbot_sim.domains import MAX_DOMAIN_ID, reserve_default_domains
 from followbot_sim.perception_monitor import PerceptionMonitor
 from followbot_sim.plots import write_plots
 from followbot_sim.realism import PRESET_NAMES
@@ -985,11 +985,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     options.workers = min(options.jobs, runs)
     options.domain_reservation = None
     if options.domain_id is None:
-        try:
-            options.domain_reservation = reserve_domains(
-                options.workers, FIRST_DOMAIN_ID, max(DOMAIN_ID_SPREAD, options.workers))
-        except (DomainsTaken, ValueError) as error:
-            parser.error(f'{error} Give one with --domain-id.')
+        options.domain_reservation = reserve_default_domains(
+            parser, options.workers, FIRST_DOMAIN_ID, max(DOMAIN_ID_SPREAD, options.workers))
         options.domain_id = options.domain_reservation.first
     if options.domain_id + options.workers - 1 > MAX_DOMAIN_ID:
         parser.error(f'--domain-id {options.domain_id} with {options.workers} workers needs '

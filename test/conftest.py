@@ -1,5 +1,6 @@
 """Shared test helpers: an isolated ROS 2 context per test, and a node-plus-client harness."""
 
+import functools
 import os
 from pathlib import Path
 import signal
@@ -53,15 +54,15 @@ settings.register_profile(
 settings.load_profile('followbot')
 
 
-_reserved_domain = {}
+@functools.cache
+def _run_domains():
+    """Reserve this test run's block of domains, once; the cache holds it until the run ends."""
+    return reserve_domains(DOMAINS_PER_RUN, FIRST_TEST_DOMAIN_ID, TEST_DOMAIN_COUNT)
 
 
 def run_domain_id() -> int:
     """Return the ROS domain of this test run, unique among concurrent runs on the machine."""
-    if 'reservation' not in _reserved_domain:
-        _reserved_domain['reservation'] = reserve_domains(DOMAINS_PER_RUN, FIRST_TEST_DOMAIN_ID,
-                                                          TEST_DOMAIN_COUNT)
-    return _reserved_domain['reservation'].first
+    return _run_domains().first
 
 
 def child_environment(domain_id: int | None = None, base: dict | None = None) -> dict:
