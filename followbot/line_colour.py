@@ -8,7 +8,8 @@ the line's pixels are judged relative to the floor around them:
 
 1. The floor's colour in each band of rows is the per-channel median of a sample of its
    pixels (the line covers a small part of a band). Their median over the bands that see the
-   floor estimates the light's colour; dividing it out (a grey-world white balance, its gains
+   floor (but those a yellow line fills, coming into a corner) estimates the light's colour;
+   dividing it out (a grey-world white balance, its gains
    kept within ``MAX_WHITE_BALANCE_GAIN``, enough for a camera without white balance under a
    warm or cold lamp, as a coloured floor would otherwise pull the balance far off) makes the
    floor neutral grey.
@@ -103,13 +104,24 @@ def white_balance(band_pixels: np.ndarray, bands_on_floor, colour: str) -> np.nd
         (MAX_CUSTOM_WHITE_BALANCE_GAIN for custom, else MAX_WHITE_BALANCE_GAIN).
     :return: float32 gains per channel (one gain of 1 for a grey image). The floor's colour
         is the median over those bands of each band's per-channel median: a band the line
-        fills (the nearest, in the simulator) does not sway it.
+        fills (the nearest, in the simulator) does not sway it. A coloured line (yellow) that
+        fills most of several bands (a corner running across the view) would: a band whose
+        median stands out from the floor of all the bands together as the line does (as
+        ``classify`` judges a band the line fills) is left out of the balance.
     """
     if band_pixels.ndim == 2:
         return np.ones(1, np.float32)
     sample = band_pixels[:, ::FLOOR_SAMPLE_STEP]
     chosen = list(bands_on_floor) or list(range(len(band_pixels)))
-    floor = np.median(np.median(sample[chosen], axis=1), axis=0)
+    medians = np.median(sample[chosen], axis=1)
+    if colour in CHROMATIC_COLOURS:
+        # White and black tape are colourless: filling a band, they leave its colour the light's.
+        common = _floor_value(_feature(colour, sample[chosen].astype(np.float32), False), True)
+        apart = _feature(colour, medians, False) - common
+        on_floor = apart <= NOISE_SIGMAS * MIN_COMMON_SIGMA
+        if on_floor.any():
+            medians = medians[on_floor]
+    floor = np.median(medians, axis=0)
     grey = float(floor.mean())
     if grey < MIN_FLOOR_LEVEL:
         return np.ones(3, np.float32)

@@ -177,6 +177,22 @@ def test_the_white_balance_is_bounded_and_neutral_on_grey(preset, bound):
     assert list(line_colour.white_balance(bands_of((1, 1, 1), grey=True), (), preset)) == [1.0]
 
 
+def test_pale_tape_filling_most_bands_does_not_sway_the_white_balance():
+    # Coming into a corner, pale worn tape runs across the view and fills most of four
+    # bands' pixels (the harsh realism preset's colours): balanced on those bands, the tape
+    # would turn grey and be lost.
+    floor_bgr, tape_bgr = (50, 50, 50), (196, 249, 249)
+    pixels = bands_of(floor_bgr, tape_bgr)
+    filled = bands_of(floor_bgr, tape_bgr, line_columns=slice(60, 300))
+    pixels[:4] = filled[:4]
+    gains = line_colour.white_balance(pixels, range(BANDS), 'yellow')
+    assert gains == pytest.approx([1.0, 1.0, 1.0])
+    mask, _, _ = line_colour.classify('yellow', pixels, gains, ROW_WIDTH, range(BANDS))
+    per_pixel = mask.reshape(BANDS, ROWS, ROW_WIDTH)
+    assert per_pixel[:4, :, 62:298].all() and per_pixel[4:, :, 142:178].all()
+    assert not per_pixel[:, :, :58].any()
+
+
 def test_pixel_strength_judges_any_pixels_against_their_bands_floor():
     pixels = bands_of((40, 42, 45), (30, 190, 210))
     gains = line_colour.white_balance(pixels, range(BANDS), 'yellow')
