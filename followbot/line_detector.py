@@ -417,6 +417,9 @@ class _Candidate(NamedTuple):
     point: tuple
     # Whether the stripe reaches the image's left or right side (the line may go on beyond).
     at_side: bool = False
+    # For a line running across the view through the band, the columns it spans (first, last
+    # + 1): another line crossing it passes through the band anywhere within them.
+    span_px: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -789,17 +792,18 @@ class LineDetector:
                     half_px = 0.5 * plan.expected_width_px[index]
                     for x_px, at_side in ((start + half_px, start == 0),
                                           (end - half_px, end == image_width)):
-                        found.append((index, x_px, y_px, area, float(quality), at_side))
+                        found.append((index, x_px, y_px, area, float(quality), at_side,
+                                      (start, end)))
                     continue
                 found.append((index, start + (x_moment - start * area) / area, y_px, area,
-                              float(quality), at_side))
+                              float(quality), at_side, None))
             nearer_reach = (reach_left, reach_right)
         if not found:
             return [[] for _ in self._bands]
         points = self._points([item[1] for item in found], [item[2] for item in found],
                               geometry)
         candidates = [[] for _ in self._bands]
-        for (index, x_px, y_px, area, quality, at_side), point in zip(found, points):
+        for (index, x_px, y_px, area, quality, at_side, span), point in zip(found, points):
             previous = self._previous_points[index]
             if previous is not None:
                 moved = math.dist(previous, point) / plan.jump
@@ -808,7 +812,7 @@ class LineDetector:
                 # Where the line was a frame ago it most likely is still.
                 quality *= 1.0 - TRACKING_WEIGHT * moved * moved
             candidates[index].append(
-                _Candidate(index, x_px, y_px, area, quality, point, at_side))
+                _Candidate(index, x_px, y_px, area, quality, point, at_side, span))
         return [sorted(band, key=lambda candidate: -candidate.quality)[
             :MAX_CANDIDATES_PER_BAND] for band in candidates]
 
@@ -1381,12 +1385,42 @@ def _gap_evidence(chain, candidates, plan, support):
     """
     evidence = 0.0
     for near, far in zip(chain, chain[1:]):
-        skipped = sum(plan.searched[band] and not candidates[band]
-                      for band in range(near.band + 1, far.band))
+        skipped = sum(plan.searched[band] and (
+            not candidates[band]
+            or _crossing(near, far, candidates[band], plan.expected_width_px[band]) is not None)
+            for band in range(near.band + 1, far.band))
         if skipped and support.in_view(near, far):
             evidence += skipped * min(near.quality, far.quality) * _paint_share(
                 support(near, far))
     return evidence
+
+
+def _crossing(near, far, band_candidates, expected_width_px):
+    """
+    Return the line across the view that a link between two stripes crosses, or None.
+
+    :param near: the nearer stripe of the link.
+    :param far: the farther stripe.
+    :param band_candidates: the candidates of a band between them.
+    :param expected_width_px: the line's width in that band, or None without geometry.
+    :return: the best of the band's stripes running along it (another line crossing the view)
+        whose columns hold the link's column at its row, more than half the line's width
+        inside where a line running through the band would enter or leave it (there, the
+        stripe is that line, which the chain takes itself).
+    """
+    if far.y_px == near.y_px or expected_width_px is None:
+        return None
+    best = None
+    for other in band_candidates:
+        if other.span_px is None:
+            continue
+        x_px = near.x_px + (far.x_px - near.x_px) * (other.y_px - near.y_px) / (
+            far.y_px - near.y_px)
+        first, last = other.span_px
+        inside = min(x_px - first, last - x_px) - expected_width_px
+        if inside > 0.0 and (best is None or other.quality > best.quality):
+            best = other
+    return best
 
 
 def _continues(chain, other, prior_heading, jump):
@@ -1642,6 +1676,11 @@ def _best_chain(candidates, plan, prior_heading, support=None):
             if before.band >= candidate.band:
                 break
             skipped = searched_before[candidate.band] - searched_before[before.band + 1]
+            # A line crossing the view that this link passes through hides nothing of it:
+            # the band saw the line there.
+            crossed = [crossing.quality * NEAR_BAND_WEIGHT ** crossing.band for crossing in (
+                _crossing(before, candidate, candidates[band], plan.expected_width_px[band])
+                for band in range(before.band + 1, candidate.band)) if crossing is not None]
             best = None
             link_cost = None
             for earlier in ends[previous]:
@@ -1662,8 +1701,8 @@ def _best_chain(candidates, plan, prior_heading, support=None):
                 if best is None or score - cost > best[0]:
                     best = (score - cost, (earlier, previous))
             if best is not None:
-                states[(previous, current)] = (best[0] + worth
-                                               - GAP_COST * skipped, best[1])
+                states[(previous, current)] = (best[0] + worth + sum(crossed)
+                                               - GAP_COST * (skipped - len(crossed)), best[1])
                 ends[current].append(previous)
     ends = {}
     for key, (score, back) in states.items():

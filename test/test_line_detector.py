@@ -866,6 +866,20 @@ def test_a_line_running_across_the_view_is_found_where_it_enters_the_bands():
     assert sum(band.found for band in detection.bands) >= 4
 
 
+@pytest.mark.parametrize('crossing_m', (0.5, 0.6))
+@pytest.mark.parametrize('lateral_m', (0.0, 0.03))
+def test_a_line_crossing_the_followed_one_is_neither_taken_nor_a_doubt(crossing_m, lateral_m):
+    # A figure eight's crossing: another line runs across the view, right through ours.
+    line = scenes.straight_line(lateral_m=lateral_m)
+    crossing = [(crossing_m, -3.0), (crossing_m, 3.0)]
+    mask = scenes.line_mask([line])
+    detection = LineDetector().detect(scenes.scene([line, crossing]), 'bgr8', scenes.KINECT)
+    for band in detection.seen_bands:
+        assert mask[int(band.centroid_y_px), int(round(band.centroid_x_px))]
+    assert detection.bands[0].found and detection.bands[-1].found
+    assert detection.confidence > 0.9
+
+
 def test_jumps_are_measured_on_the_floor():
     detector = LineDetector()
     config = detector.config
