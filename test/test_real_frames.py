@@ -25,7 +25,7 @@ TARGET_SOURCES = {'yellow': None, 'white': ('ev3-whitelane',), 'black': ('kejdi-
 # Frames no robot camera takes, scored on their own (expected to fail, and reported).
 NOT_A_ROBOT_VIEW = {
     'kejdi_robot_on_track_1.png': 'a phone photo from above with the robot itself on the tape: '
-                                  'its wheel, cable and chassis are taken for tape in the middle '
+                                  'its chassis and cables are taken for tape in the middle '
                                   'bands',
 }
 
