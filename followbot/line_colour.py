@@ -111,12 +111,12 @@ def white_balance(band_pixels: np.ndarray, bands_on_floor, colour: str) -> np.nd
     """
     if band_pixels.ndim == 2:
         return np.ones(1, np.float32)
-    sample = band_pixels[:, ::FLOOR_SAMPLE_STEP]
     chosen = list(bands_on_floor) or list(range(len(band_pixels)))
-    medians = np.median(sample[chosen], axis=1)
+    sample = band_pixels[chosen, ::FLOOR_SAMPLE_STEP]
+    medians = np.median(sample, axis=1)
     if colour in CHROMATIC_COLOURS:
         # White and black tape are colourless: filling a band, they leave its colour the light's.
-        common = _floor_value(_feature(colour, sample[chosen].astype(np.float32), False), True)
+        common = _floor_value(_feature(colour, sample.astype(np.float32), False), True)
         apart = _feature(colour, medians, False) - common
         on_floor = apart <= NOISE_SIGMAS * MIN_COMMON_SIGMA
         if on_floor.any():
