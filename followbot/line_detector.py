@@ -1046,15 +1046,12 @@ class LineDetector:
         if len(chain) < 2 or not chain[-1].at_side or any(candidates[chain[-1].band + 1:]):
             return sum(searched)
         near, far = chain[-2], chain[-1]
-        rows = far.y_px - near.y_px
         width = self._image_shape[1]
         in_view = sum(searched[:far.band + 1])
         for band in range(far.band + 1, len(searched)):
             top, bottom = self._bands[band]
             centre_y_px = 0.5 * (top + bottom - 1)
-            x_px = far.x_px + (far.x_px - near.x_px) * (centre_y_px - far.y_px) / rows if (
-                rows) else far.x_px
-            if not 0.0 <= x_px <= width - 1:
+            if not 0.0 <= _column_at_row(near, far, centre_y_px) <= width - 1:
                 break
             in_view += searched[band]
         return in_view + OUT_OF_VIEW_BAND_WEIGHT * (sum(searched) - in_view)
@@ -1395,6 +1392,14 @@ def _gap_evidence(chain, candidates, plan, support):
     return evidence
 
 
+def _column_at_row(near, far, y_px):
+    """Return the column at an image row of the straight line through two stripes."""
+    rows = far.y_px - near.y_px
+    if not rows:
+        return far.x_px
+    return far.x_px + (far.x_px - near.x_px) * (y_px - far.y_px) / rows
+
+
 def _crossing(near, far, band_candidates, expected_width_px):
     """
     Return the line across the view that a link between two stripes crosses, or None.
@@ -1408,14 +1413,13 @@ def _crossing(near, far, band_candidates, expected_width_px):
         inside where a line running through the band would enter or leave it (there, the
         stripe is that line, which the chain takes itself).
     """
-    if far.y_px == near.y_px or expected_width_px is None:
+    if expected_width_px is None:
         return None
     best = None
     for other in band_candidates:
         if other.span_px is None:
             continue
-        x_px = near.x_px + (far.x_px - near.x_px) * (other.y_px - near.y_px) / (
-            far.y_px - near.y_px)
+        x_px = _column_at_row(near, far, other.y_px)
         first, last = other.span_px
         inside = min(x_px - first, last - x_px) - expected_width_px
         if inside > 0.0 and (best is None or other.quality > best.quality):
@@ -1675,12 +1679,6 @@ def _best_chain(candidates, plan, prior_heading, support=None):
             before = flat[previous]
             if before.band >= candidate.band:
                 break
-            skipped = searched_before[candidate.band] - searched_before[before.band + 1]
-            # A line crossing the view that this link passes through hides nothing of it:
-            # the band saw the line there.
-            crossed = [crossing.quality * NEAR_BAND_WEIGHT ** crossing.band for crossing in (
-                _crossing(before, candidate, candidates[band], plan.expected_width_px[band])
-                for band in range(before.band + 1, candidate.band)) if crossing is not None]
             best = None
             link_cost = None
             for earlier in ends[previous]:
@@ -1701,6 +1699,14 @@ def _best_chain(candidates, plan, prior_heading, support=None):
                 if best is None or score - cost > best[0]:
                     best = (score - cost, (earlier, previous))
             if best is not None:
+                skipped = searched_before[candidate.band] - searched_before[before.band + 1]
+                # A line crossing the view that this link passes through hides nothing of it:
+                # the band saw the line there.
+                crossed = [crossing.quality * NEAR_BAND_WEIGHT ** crossing.band
+                           for crossing in (_crossing(before, candidate, candidates[band],
+                                                      plan.expected_width_px[band])
+                                            for band in range(before.band + 1, candidate.band))
+                           if crossing is not None]
                 states[(previous, current)] = (best[0] + worth + sum(crossed)
                                                - GAP_COST * (skipped - len(crossed)), best[1])
                 ends[current].append(previous)
