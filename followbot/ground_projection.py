@@ -255,7 +255,9 @@ class CameraGeometry:
         with np.errstate(divide='ignore', invalid='ignore'):
             ahead_m = np.where(below_horizon_rad > 0.0,
                                self.height_m / np.tan(below_horizon_rad), np.inf)
-            near_rad = np.arctan2(self.height_m, np.maximum(ahead_m - width_m / 2.0, 1e-9))
+            # Past the camera's foot (a camera looking down beyond the vertical) the floor's
+            # distance ahead is negative; arctan2 keeps its angles right there too.
+            near_rad = np.arctan2(self.height_m, ahead_m - width_m / 2.0)
             far_rad = np.arctan2(self.height_m, ahead_m + width_m / 2.0)
             rows = self.fy_px * (np.tan(near_rad - self.pitch_rad)
                                  - np.tan(far_rad - self.pitch_rad))

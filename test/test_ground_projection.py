@@ -283,6 +283,23 @@ def test_scalars_give_scalars_and_lists_give_arrays():
     assert x_m.shape == y_m.shape == (0,)
 
 
+@pytest.mark.parametrize('camera', (
+    CAMERA,
+    with_fields(pitch_rad=math.radians(75.0), forward_m=-0.1, height_m=1.0),
+    # A phone held above the floor, its top rows looking back past the vertical.
+    with_fields(pitch_rad=math.radians(80.0), cy_px=-94.0, height_m=1.1),
+), ids=('simulated_kinect', 'steep_high', 'past_the_vertical'))
+def test_a_line_across_the_view_spans_the_rows_between_its_two_edges(camera):
+    width_m = 0.05
+    rows_px = np.arange(0.0, HEIGHT_PX, GRID_STEP_PX)
+    ahead_m, _ = camera.pixels_to_floor(np.full_like(rows_px, CX_PX), rows_px)
+    edges_m = np.concatenate([ahead_m - width_m / 2.0, ahead_m + width_m / 2.0])
+    _, edge_rows_px = floor_points_to_pixels(camera, edges_m, np.zeros_like(edges_m))
+    near_px, far_px = np.split(edge_rows_px, 2)
+    np.testing.assert_allclose(camera.across_line_rows_px(rows_px, width_m),
+                               near_px - far_px, rtol=1e-9)
+
+
 # Against the simulator.
 
 def test_band_centroids_in_the_simulated_camera_land_on_the_course_centre_line():
