@@ -27,6 +27,7 @@ from followbot.image_conversion import image_to_array, ImageConversionError, to_
 from followbot.line_detector import band_rows, DetectorConfig
 from followbot.line_sample import CalibrationError
 from followbot.node_runner import init_rclpy, RosStartError, split_ros_arguments
+from followbot.number_options import number_in, parameter_option
 # The recording format's magic bytes and read errors (a damaged lz4/zstd chunk among them).
 from followbot.recording import MCAP_MAGIC, READ_ERRORS
 from mcap.reader import make_reader, NonSeekingReader
@@ -123,7 +124,7 @@ def parse_arguments(argv=None, prog=PROGRAM):
     parser.add_argument('--topic', metavar='TOPIC',
                         help='the image topic: of the recording (needed when it has several),'
                              ' or, without SOURCE, a live topic to take a frame from')
-    parser.add_argument('--frame', type=int, default=0, metavar='N',
+    parser.add_argument('--frame', type=number_in(0, whole=True), default=0, metavar='N',
                         help='take the N-th image message of the recording or topic, '
                              'counting from 0 (default: 0, the first)')
     line = parser.add_mutually_exclusive_group()
@@ -135,35 +136,31 @@ def parse_arguments(argv=None, prog=PROGRAM):
                         help="the camera's calibration YAML, as camera_calibration writes "
                              'it; with --camera-height-m and --camera-pitch-deg the '
                              "tape's width is measured and the width checks are verified")
-    parser.add_argument('--camera-height-m', type=float, metavar='M',
+    parser.add_argument('--camera-height-m', metavar='M',
+                        type=parameter_option(CAMERA_PARAMETERS['camera_height_m']),
                         help='height of the camera above the floor')
-    parser.add_argument('--camera-pitch-deg', type=float, metavar='DEG',
+    parser.add_argument('--camera-pitch-deg', metavar='DEG',
+                        type=parameter_option(CAMERA_PARAMETERS['camera_pitch_deg']),
                         help='downward tilt of the camera from the horizontal')
     parser.add_argument('--output', type=Path, metavar='FILE',
                         help='write the parameters YAML here instead of to stdout')
     parser.add_argument('--picture', type=Path, metavar='FILE.png',
                         help='where to save the picture (default: beside --output, with '
                              f'the suffix {PICTURE_SUFFIX}, else {DEFAULT_PICTURE})')
-    parser.add_argument('--timeout', type=float, default=DEFAULT_TIMEOUT_S, metavar='S',
+    parser.add_argument('--timeout', type=number_in(0.0, above=True), default=DEFAULT_TIMEOUT_S,
+                        metavar='S',
                         help='seconds to wait for a frame on a live topic (default: '
                              f'{DEFAULT_TIMEOUT_S:g})')
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments
     if options.source is None and options.topic is None:
         parser.error('give an image file or recording, or a live --topic')
-    if options.frame < 0 or not options.timeout > 0:
-        parser.error('--frame must be at least 0 and --timeout positive')
     given = [getattr(options, name) is not None for name in CAMERA_OPTIONS]
     if any(given) and not all(given):
         missing = ', '.join('--' + name.replace('_', '-')
                             for name, present in zip(CAMERA_OPTIONS, given) if not present)
         parser.error(f'the camera needs --camera-info, --camera-height-m and '
                      f'--camera-pitch-deg together; missing {missing}')
-    for name in CAMERA_OPTIONS[1:]:
-        value, spec = getattr(options, name), CAMERA_PARAMETERS[name]
-        if value is not None and not spec.low <= value <= spec.high:
-            parser.error(f'--{name.replace("_", "-")} must be in [{spec.low:g}, '
-                         f'{spec.high:g}], as the follower takes it, got {value:g}')
     return options
 
 

@@ -26,6 +26,7 @@ from followbot.command_comparison import (answers_by_order, answers_by_status, C
                                           FrameResult, Velocity)
 from followbot.follower_node import COMPRESSED_SUFFIX, FollowerNode, LONGEST_IMAGE_TIMEOUT_S
 from followbot.node_runner import init_rclpy, RosStartError
+from followbot.number_options import number_in
 from followbot.recording import (header_stamp_ns, import_message_class, read_messages,
                                  RecordingError)
 from geometry_msgs.msg import Twist, TwistStamped
@@ -86,10 +87,10 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                     'with the recorded ones. Exit code 0: all match within --tolerance; 1: '
                     'some differ; 2: the file or the arguments cannot be used.')
     parser.add_argument('recording', help='the .mcap file (e.g. from followbot --record)')
-    parser.add_argument('--rate', type=_non_negative, default=0.0, metavar='FACTOR',
+    parser.add_argument('--rate', type=number_in(0.0), default=0.0, metavar='FACTOR',
                         help='recorded seconds per wall second; 0 (default) sends each frame '
                              'as soon as the follower answered the previous one')
-    parser.add_argument('--tolerance', type=_non_negative, default=0.0, metavar='VALUE',
+    parser.add_argument('--tolerance', type=number_in(0.0), default=0.0, metavar='VALUE',
                         help='largest difference of a velocity component (m/s, rad/s) still '
                              'counted as a match (default: 0, identical)')
     parser.add_argument('--params-file', default=None, metavar='FILE',
@@ -101,28 +102,14 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument('--command-topic', default=None, metavar='TOPIC',
                         help="the recording's Twist or TwistStamped command topic (default: the "
                              'one named .../cmd_vel)')
-    parser.add_argument('--answer-timeout', type=_positive, default=DEFAULT_ANSWER_TIMEOUT_S,
-                        metavar='SECONDS',
+    parser.add_argument('--answer-timeout', type=number_in(0.0, above=True),
+                        default=DEFAULT_ANSWER_TIMEOUT_S, metavar='SECONDS',
                         help='longest wait (wall time) for the answer to one frame (default: '
                              f'{DEFAULT_ANSWER_TIMEOUT_S:g})')
     options = parser.parse_args(argv)
     if options.params_file is not None and not os.path.isfile(options.params_file):
         parser.error(f'--params-file {options.params_file}: no such file')
     return options
-
-
-def _non_negative(text: str) -> float:
-    value = float(text)
-    if not value >= 0.0:
-        raise argparse.ArgumentTypeError(f'{text} is not a number >= 0')
-    return value
-
-
-def _positive(text: str) -> float:
-    value = float(text)
-    if not value > 0.0:
-        raise argparse.ArgumentTypeError(f'{text} is not a number > 0')
-    return value
 
 
 class RecordingPlan:

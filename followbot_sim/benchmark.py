@@ -42,12 +42,13 @@ from followbot.image_conversion import (array_to_image, dtype_of, expected_shape
                                         image_to_array)
 from followbot.line_detector import DetectorConfig, hsv_bounds, LineDetector
 from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSignals
+from followbot.number_options import number_in
 from followbot.transport import (environment_without_profile, keep_large_buffers,
                                  USER_CONFIGURATION_VARIABLES)
 from followbot_sim import real_frames
 from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.course_file import load_course
-from followbot_sim.domains import MAX_DOMAIN_ID, reserve_default_domains
+from followbot_sim.domains import domain_id_option, reserve_default_domains
 from followbot_sim.perception_score import PerceptionTally, RIGHT
 from followbot_sim.realism import CLEAN, PRESET_NAMES, realise, Realism
 from followbot_sim.score import score_values
@@ -73,6 +74,8 @@ COURSE = 'book_loop'
 IMAGE_WIDTH_PX = 640
 IMAGE_HEIGHT_PX = 480
 CAMERA_RATE_HZ = 20.0
+# What each of --rates takes.
+RATE_OPTION = number_in(0.0, above=True)
 # The frames: poses around the whole course, swaying across the line and turning a little
 # as a following robot does, so the detector meets straights, bends and offsets.
 SWAY_AMPLITUDE_M = 0.03
@@ -642,21 +645,21 @@ def parse_arguments(argv=None) -> argparse.Namespace:
         'between processes and simulator speed, and print them side by side.')
     parser.add_argument('--sections', default=','.join(SECTIONS),
                         help=f'comma-separated, from {", ".join(SECTIONS)} (default: all)')
-    parser.add_argument('--frames', type=int, default=160,
+    parser.add_argument('--frames', type=number_in(1, whole=True), default=160,
                         help='frames rendered around the course (default: 160)')
-    parser.add_argument('--repeats', type=int, default=10,
+    parser.add_argument('--repeats', type=number_in(1, whole=True), default=10,
                         help='perception: times each frame is processed (default: 10)')
-    parser.add_argument('--latency-frames', type=int, default=600,
+    parser.add_argument('--latency-frames', type=number_in(1, whole=True), default=600,
                         help='latency: frames measured per rate and configuration '
                              '(default: 600)')
     parser.add_argument('--rates', default='20,30',
                         help='latency: comma-separated frame rates in Hz (default: 20,30)')
-    parser.add_argument('--simulated-seconds', type=float, default=60.0,
+    parser.add_argument('--simulated-seconds', type=number_in(3.0), default=60.0,
                         help='simulation: simulated seconds to run (default: 60)')
     parser.add_argument('--realism', default=','.join(SIMULATION_REALISM),
                         help='simulation: comma-separated realism presets to run, side by side '
                              f"(default: {','.join(SIMULATION_REALISM)})")
-    parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
+    parser.add_argument('--domain-id', type=domain_id_option, default=None, metavar='ID',
                         help='ROS domain of the runs, which take turns in it (default: a free '
                              f'one in {FIRST_DOMAIN_ID}-{FIRST_DOMAIN_ID + DOMAIN_ID_SPREAD - 1}, '
                              'which no other benchmark, scorecard or test run then takes)')
@@ -675,20 +678,14 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     if not options.realism or set(options.realism) - set(PRESET_NAMES):
         parser.error(f'--realism takes {", ".join(PRESET_NAMES)}; got {options.realism}')
     try:
-        options.rates = [float(rate) for rate in options.rates.split(',')]
-    except ValueError:
-        parser.error(f'--rates takes numbers such as 20,30; got {options.rates!r}')
-    if (options.frames < 1 or options.repeats < 1 or options.latency_frames < 1
-            or options.simulated_seconds < 3 or any(rate <= 0 for rate in options.rates)):
-        parser.error('--frames, --repeats and --latency-frames must be at least 1, '
-                     '--simulated-seconds at least 3, and rates above 0')
+        options.rates = [RATE_OPTION(rate) for rate in options.rates.split(',')]
+    except argparse.ArgumentTypeError as error:
+        parser.error(f'argument --rates: each rate {error}')
     options.domain_reservation = None
     if options.domain_id is None:
         options.domain_reservation = reserve_default_domains(parser, 1, FIRST_DOMAIN_ID,
                                                              DOMAIN_ID_SPREAD)
         options.domain_id = options.domain_reservation.first
-    elif not 0 <= options.domain_id <= MAX_DOMAIN_ID:
-        parser.error(f'--domain-id must be in 0..{MAX_DOMAIN_ID}')
     return options
 
 

@@ -13,9 +13,13 @@ import os
 from pathlib import Path
 import tempfile
 
+from followbot.number_options import number_in
+
 LOCKS_DIR = Path(tempfile.gettempdir()) / 'followbot-domains'
 # Largest ROS_DOMAIN_ID whose DDS ports fit in the port range on Linux.
 MAX_DOMAIN_ID = 232
+# The argparse type of a command's --domain-id.
+domain_id_option = number_in(0, MAX_DOMAIN_ID, whole=True)
 
 
 class DomainsTaken(RuntimeError):

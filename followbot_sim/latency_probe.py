@@ -23,6 +23,7 @@ from followbot import frames as frame_names
 from followbot import messages
 from followbot.image_conversion import array_to_image
 from followbot.node_runner import NodeExecutor, StopSignals
+from followbot.number_options import number_in
 from followbot.transport import keep_large_buffers, use_package_profile
 from geometry_msgs.msg import TwistStamped
 import numpy as np
@@ -131,8 +132,10 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='.npy file of (N, H, W, 3) uint8 BGR frames')
     parser.add_argument('--intrinsics', type=float, nargs=4, required=True,
                         metavar=('FX', 'FY', 'CX', 'CY'), help='camera intrinsics in pixels')
-    parser.add_argument('--rate-hz', type=float, required=True, help='frames per second')
-    parser.add_argument('--frames', type=int, required=True, help='frames to measure')
+    parser.add_argument('--rate-hz', type=number_in(0.0, above=True), required=True,
+                        help='frames per second')
+    parser.add_argument('--frames', type=number_in(1, whole=True), required=True,
+                        help='frames to measure')
     parser.add_argument('--json-out', type=Path, required=True,
                         help='file to write the figures to')
     return parser.parse_args(argv)

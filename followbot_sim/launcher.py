@@ -24,17 +24,19 @@ from followbot.image_conversion import image_to_array, to_bgr
 from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_namespace,
                                    ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
                                    StopSignals)
+from followbot.number_options import number_in, parameter_option
 from followbot.package_files import share_file
 from followbot.recording import RecordingError
 from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim import soak
 from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.course_library import COURSES
-from followbot_sim.domains import MAX_DOMAIN_ID
+from followbot_sim.domains import domain_id_option
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
 from followbot_sim.run_recording import add_record_options, drain, HoldReport, RunRecording
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
+from followbot_sim.sim_node import SIMULATOR_PARAMETERS
 from followbot_sim.video import add_video_node, check_video_path, VideoHold, VideoPathError
 import rclpy
 from rclpy.context import Context
@@ -83,15 +85,17 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                'declare; prefix a remap with a node name (follower:, followbot_sim:) to '
                "aim it at one node. `followbot calibrate --help`: the follower's "
                'parameters for a new camera and tape, from one frame.')
-    parser.add_argument('--duration', type=float, default=240.0, metavar='SECONDS',
+    parser.add_argument('--duration', default=240.0, metavar='SECONDS',
+                        type=parameter_option(SIMULATOR_PARAMETERS['run_duration_s']),
                         help='simulated seconds to run; 0 runs until Ctrl-C (default: 240)')
-    parser.add_argument('--real-time-factor', type=float, default=1.0, metavar='FACTOR',
+    parser.add_argument('--real-time-factor', default=1.0, metavar='FACTOR',
+                        type=parameter_option(SIMULATOR_PARAMETERS['real_time_factor']),
                         help='simulated seconds per wall second; 0 = as fast as the machine '
                              'allows (default: 1)')
     parser.add_argument('--lockstep', action='store_true', default=None,
                         help='let the follower drive time: the simulator waits for the '
                              'command answering each camera frame (runs are reproducible)')
-    parser.add_argument('--domain-id', type=int, default=None, metavar='ID',
+    parser.add_argument('--domain-id', type=domain_id_option, default=None, metavar='ID',
                         help="ROS_DOMAIN_ID for both nodes (default: the environment's, or 0)")
     parser.add_argument('--course', default=None,
                         help='a built-in course (' + ', '.join(COURSES) + ') or the path of a '
@@ -99,9 +103,11 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'book_loop)')
     parser.add_argument('--lighting', action='store_true', default=None,
                         help='add bright and dim zones of light along the line')
-    parser.add_argument('--report-period', type=float, default=10.0, metavar='SECONDS',
+    parser.add_argument('--report-period', type=number_in(0.0, above=True), default=10.0,
+                        metavar='SECONDS',
                         help='simulated seconds between progress lines (default: 10)')
-    parser.add_argument('--robots', type=int, default=None, metavar='N',
+    parser.add_argument('--robots', type=number_in(1, MAX_ROBOTS, whole=True), default=None,
+                        metavar='N',
                         help=f'race N robots (1..{MAX_ROBOTS}, named r1..rN) on one course in '
                              'one simulator, each with its own follower process under its '
                              'namespace (default: one per --configs entry, else 1)')
@@ -118,10 +124,12 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help="write a video (.mp4 or .avi) of the follower's view with its "
                              'overlay beside the course from above with the path driven, in '
                              'simulated time: it plays at real speed however fast the run')
-    parser.add_argument('--video-period-s', type=float, default=None, metavar='SECONDS',
+    parser.add_argument('--video-period-s', type=number_in(0.0, above=True), default=None,
+                        metavar='SECONDS',
                         help='simulated seconds between video frames (default: one frame per '
                              'camera frame)')
-    parser.add_argument('--soak-period', type=float, default=None, metavar='SECONDS',
+    parser.add_argument('--soak-period', type=number_in(0.0, above=True), default=None,
+                        metavar='SECONDS',
                         help="soak test: sample both nodes' resident memory, open files and "
                              'shared memory every SECONDS of wall time, print the table at the '
                              "end and fail when a node's memory grew by more than "
@@ -131,22 +139,17 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     add_record_options(parser)
     options = parser.parse_args(own_arguments)
     options.ros_arguments = ros_arguments
-    if options.video_period_s is not None and not options.video_period_s > 0:
-        parser.error('--video-period-s must be > 0')
-    if options.duration < 0 or options.real_time_factor < 0 or options.report_period <= 0:
-        parser.error('--duration and --real-time-factor must be >= 0, --report-period > 0')
-    if options.soak_period is not None and (options.soak_period <= 0 or options.duration == 0):
-        parser.error('--soak-period must be > 0 and needs a --duration')
-    if options.domain_id is not None and not 0 <= options.domain_id <= MAX_DOMAIN_ID:
-        parser.error(f'--domain-id must be in 0..{MAX_DOMAIN_ID}')
+    if options.soak_period is not None and options.duration == 0:
+        parser.error('--soak-period needs a --duration')
     try:
         options.configs = follower_configurations(options.configs)
     except ValueError as error:
         parser.error(str(error))
     if options.robots is None:
         options.robots = max(1, len(options.configs))
-    if not 1 <= options.robots <= MAX_ROBOTS:
-        parser.error(f'--robots must be in 1..{MAX_ROBOTS}')
+    if options.robots > MAX_ROBOTS:
+        parser.error(f'--configs names {options.robots} configurations; at most {MAX_ROBOTS} '
+                     'robots race')
     if len(options.configs) == 1:
         options.configs = options.configs * options.robots
     elif options.configs and len(options.configs) != options.robots:

@@ -35,11 +35,12 @@ import time
 
 from followbot.follower_node import FollowerNode, LONGEST_IMAGE_TIMEOUT_S
 from followbot.node_runner import refuse_ros_arguments, StopSignals
+from followbot.number_options import number_in
 from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
-from followbot_sim.domains import MAX_DOMAIN_ID, reserve_default_domains
+from followbot_sim.domains import domain_id_option, MAX_DOMAIN_ID, reserve_default_domains
 from followbot_sim.perception_monitor import PerceptionMonitor
 from followbot_sim.plots import write_plots
 from followbot_sim.realism import PRESET_NAMES
@@ -870,38 +871,6 @@ def run_one(task: dict) -> dict:
     return record
 
 
-def _domain_id_option(text: str) -> int:
-    value = int(text)
-    if not 0 <= value <= MAX_DOMAIN_ID:
-        raise argparse.ArgumentTypeError(f'must be in 0..{MAX_DOMAIN_ID}, got {value}')
-    return value
-
-
-def _positive(text: str) -> float:
-    value = float(text)
-    if not value > 0.0:
-        raise argparse.ArgumentTypeError(f'must be positive, got {text}')
-    return value
-
-
-def _starts_option(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if not 1 <= value <= len(STARTS):
-        raise argparse.ArgumentTypeError(f'takes a whole number from 1 to {len(STARTS)}, got '
-                                         f'{text!r}')
-    return value
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'must be at least 1, got {text}')
-    return value
-
-
 def parse_arguments(argv=None) -> argparse.Namespace:
     """
     Read and check the command line.
@@ -927,22 +896,25 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument('--configs', action='append', metavar='NAMES',
                         help='configurations to run, comma-separated or repeated (default: '
                              + ', '.join(BUILTIN_CONFIGURATIONS) + ' and every --params-file)')
-    parser.add_argument('--jobs', type=_positive_int, default=os.cpu_count() or 1, metavar='N',
+    parser.add_argument('--jobs', type=number_in(1, whole=True), default=os.cpu_count() or 1,
+                        metavar='N',
                         help='runs at a time, each in its own process (default: the CPU count)')
-    parser.add_argument('--domain-id', type=_domain_id_option, default=None, metavar='ID',
+    parser.add_argument('--domain-id', type=domain_id_option, default=None, metavar='ID',
                         help='ROS domain of the first worker; worker k uses ID + k (default: '
                              'the first free block in '
                              f'{FIRST_DOMAIN_ID}-{FIRST_DOMAIN_ID + DOMAIN_ID_SPREAD - 1}, '
                              'which no other scorecard, benchmark or test run then takes)')
-    parser.add_argument('--time-limit-s', type=_positive, default=None, metavar='SECONDS',
+    parser.add_argument('--time-limit-s', type=number_in(0.0, above=True), default=None,
+                        metavar='SECONDS',
                         help='simulated seconds a run may take (default: '
                              f'{TIME_LIMIT_LAPS:g} x course length / {BOOK_SPEED_MPS:g} m/s)')
-    parser.add_argument('--stuck-after-s', type=_positive, default=DEFAULT_STUCK_AFTER_S,
-                        metavar='SECONDS',
+    parser.add_argument('--stuck-after-s', type=number_in(0.0, above=True),
+                        default=DEFAULT_STUCK_AFTER_S, metavar='SECONDS',
                         help='end a run as stuck when it progressed less than '
                              f'{100 * STUCK_MIN_PROGRESS_M:g} cm along the line in this many '
                              f'simulated seconds (default: {DEFAULT_STUCK_AFTER_S:g})')
-    parser.add_argument('--starts', type=_starts_option, default=1, metavar='N',
+    parser.add_argument('--starts', type=number_in(1, len(STARTS), whole=True), default=1,
+                        metavar='N',
                         help="run each scenario from N starts, the course's own and N - 1 at "
                              'most 2 cm beside it or 1 degree turned, and add a table of each '
                              "figure's mean and range over them (default: 1; at most "

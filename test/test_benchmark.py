@@ -57,6 +57,8 @@ def test_book_pipeline_sees_nothing_without_yellow():
     ['--sections', ''],
     ['--rates', '20,fast'],
     ['--rates', '0'],
+    ['--rates', '20,nan'],
+    ['--simulated-seconds', 'nan'],
     ['--frames', '0'],
     ['--simulated-seconds', '1'],
     ['--domain-id', '300'],

@@ -266,7 +266,8 @@ def test_bad_input_is_one_line_and_status_2(tmp_path, arguments, message, capsys
     (['frame.png', '--point', '1,2', '--region', '1,2,3,4'], 'not allowed with argument'),
     (['frame.png', '--camera-info', 'c.yaml'], 'missing --camera-height-m, --camera-pitch-deg'),
     (['frame.png', '--camera-info', 'c.yaml', '--camera-height-m', '0', '--camera-pitch-deg',
-      '10'], '--camera-height-m must be in [0.01, 10]'),
+      '10'], "argument --camera-height-m: must be a number in [0.01, 10], got '0'"),
+    (['frame.png', '--frame', '-1'], "argument --frame: must be a whole number >= 0, got '-1'"),
 ])
 def test_bad_arguments_are_one_line_and_status_2(arguments, message, capsys):
     with pytest.raises(SystemExit) as exit_info:

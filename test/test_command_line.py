@@ -58,6 +58,21 @@ def test_invalid_ros_arguments_are_refused_in_one_line(command, tmp_path):
     assert 'Traceback' not in result.stdout
 
 
+@pytest.mark.parametrize('argv, message', [
+    (['--duration', 'nan'], "argument --duration: must be a number in [0, 1e+06], got 'nan'"),
+    (['--real-time-factor', '500'], 'argument --real-time-factor: must be a number in [0, 100]'),
+    (['--report-period', '0'], "argument --report-period: must be a number > 0, got '0'"),
+    (['--domain-id', '300'], 'argument --domain-id: must be a whole number in [0, 232]'),
+])
+def test_followbot_refuses_numbers_out_of_range_before_it_starts_a_node(argv, message, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        launcher.parse_arguments(argv)
+    assert exit_info.value.code == 2
+    errors = [line for line in capsys.readouterr().err.splitlines()
+              if line.startswith('followbot: error:')]
+    assert len(errors) == 1 and message in errors[0]
+
+
 @pytest.mark.parametrize('command', [scorecard, benchmark], ids=lambda module: module.__name__)
 def test_tools_that_start_their_own_nodes_refuse_ros_arguments(command, capsys):
     with pytest.raises(SystemExit) as exit_info:
@@ -99,7 +114,8 @@ def test_a_parameters_file_is_a_configuration_named_by_its_stem(tmp_path):
 @pytest.mark.parametrize('argv, message', [
     (['--robots', '3', '--configs', 'followbot,book'], '2 configurations for 3 robots'),
     (['--configs', 'followbot,nonesuch'], "'nonesuch' is neither a built-in configuration"),
-    (['--robots', '0'], '--robots must be in 1..8'),
+    (['--robots', '0'], "argument --robots: must be a whole number in [1, 8], got '0'"),
+    (['--configs', ','.join(['book'] * 9)], 'at most 8 robots race'),
     (['--robots', '2', '--video', 'race.mp4'], '--video films one robot'),
 ])
 def test_followbot_refuses_robots_and_configs_that_do_not_match(argv, message, capsys):

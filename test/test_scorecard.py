@@ -230,9 +230,10 @@ def test_stuck_only_after_a_whole_window_without_progress():
     (['--configs', 'nobody'], "Unknown configuration 'nobody'"),
     (['--params-file', '/nowhere/x.yaml'], 'does not exist'),
     (['--sim-param', 'course:=dashed'], 'set by the scorecard'),
-    (['--jobs', '0'], 'must be at least 1'),
-    (['--starts', '0'], f'from 1 to {len(STARTS)}'),
-    (['--starts', str(len(STARTS) + 1)], f'from 1 to {len(STARTS)}'),
+    (['--jobs', '0'], "argument --jobs: must be a whole number >= 1, got '0'"),
+    (['--starts', '0'], f'must be a whole number in [1, {len(STARTS)}]'),
+    (['--starts', str(len(STARTS) + 1)], f'must be a whole number in [1, {len(STARTS)}]'),
+    (['--time-limit-s', 'nan'], "argument --time-limit-s: must be a number > 0, got 'nan'"),
     (['--starts', '2', '--sim-param', 'start_lateral_offset_m:=0.01'],
      'give start_lateral_offset_m with --sim-param only without --starts'),
 ])

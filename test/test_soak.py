@@ -132,9 +132,11 @@ def test_help_describes_the_soak_option(capsys):
     assert 'first 20 % of the run, at least 150 s' in ' '.join(capsys.readouterr().out.split())
 
 
-@pytest.mark.parametrize('arguments', [['--soak-period', '0'],
-                                       ['--soak-period', '10', '--duration', '0']])
-def test_soak_needs_a_positive_period_and_a_duration(arguments, capsys):
+@pytest.mark.parametrize('arguments, message', [
+    (['--soak-period', '0'], "argument --soak-period: must be a number > 0, got '0'"),
+    (['--soak-period', '10', '--duration', '0'], '--soak-period needs a --duration'),
+])
+def test_soak_needs_a_positive_period_and_a_duration(arguments, message, capsys):
     with pytest.raises(SystemExit):
         launcher.parse_arguments(arguments)
-    assert '--soak-period must be > 0 and needs a --duration' in capsys.readouterr().err
+    assert message in capsys.readouterr().err
