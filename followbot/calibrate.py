@@ -28,6 +28,7 @@ from followbot.line_detector import band_rows, DetectorConfig
 from followbot.line_sample import CalibrationError
 from followbot.node_runner import init_rclpy, RosStartError, split_ros_arguments
 from followbot.number_options import number_in, parameter_option
+from followbot.output_files import output_file_option
 # The recording format's magic bytes and read errors (a damaged lz4/zstd chunk among them).
 from followbot.recording import MCAP_MAGIC, READ_ERRORS
 from mcap.reader import make_reader, NonSeekingReader
@@ -46,6 +47,8 @@ EXIT_FAILED = 2
 EXIT_INTERRUPTED = 130
 DEFAULT_PICTURE = 'calibration.png'
 PICTURE_SUFFIX = '.png'
+# The picture types a --picture may name (OpenCV writes them in every build).
+PICTURE_SUFFIXES = (PICTURE_SUFFIX, '.jpg', '.jpeg')
 RECORDING_SUFFIX = '.mcap'
 DEFAULT_TIMEOUT_S = 10.0
 SPIN_S = 0.1
@@ -142,9 +145,10 @@ def parse_arguments(argv=None, prog=PROGRAM):
     parser.add_argument('--camera-pitch-deg', metavar='DEG',
                         type=parameter_option(CAMERA_PARAMETERS['camera_pitch_deg']),
                         help='downward tilt of the camera from the horizontal')
-    parser.add_argument('--output', type=Path, metavar='FILE',
+    parser.add_argument('--output', type=output_file_option('the parameters'), metavar='FILE',
                         help='write the parameters YAML here instead of to stdout')
-    parser.add_argument('--picture', type=Path, metavar='FILE.png',
+    parser.add_argument('--picture', metavar='FILE.png',
+                        type=output_file_option('the picture', PICTURE_SUFFIXES),
                         help='where to save the picture (default: beside --output, with '
                              f'the suffix {PICTURE_SUFFIX}, else {DEFAULT_PICTURE})')
     parser.add_argument('--timeout', type=number_in(0.0, above=True), default=DEFAULT_TIMEOUT_S,

@@ -43,6 +43,7 @@ from followbot.image_conversion import (array_to_image, dtype_of, expected_shape
 from followbot.line_detector import DetectorConfig, hsv_bounds, LineDetector
 from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSignals
 from followbot.number_options import number_in
+from followbot.output_files import output_file_option
 from followbot.transport import (environment_without_profile, keep_large_buffers,
                                  USER_CONFIGURATION_VARIABLES)
 from followbot_sim import real_frames
@@ -666,7 +667,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument('--real-frame-pictures', type=Path, default=None, metavar='DIR',
                         help='real_frames: save a schematic of every frame not all right '
                              "(labels and verdicts, none of the frame's pixels) in DIR")
-    parser.add_argument('--json', type=Path, default=None, metavar='FILE',
+    parser.add_argument('--json', type=output_file_option('the figures'), default=None,
+                        metavar='FILE',
                         help='also write the figures to this JSON file')
     refuse_ros_arguments(parser, argv, 'it starts its own nodes with the settings it measures.')
     options = parser.parse_args(argv)
@@ -757,7 +759,13 @@ def main(argv=None) -> int:
     report['peak_memory_benchmark_mib'] = (
         resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / KIB_PER_MIB)
     if options.json is not None:
-        options.json.write_text(json.dumps(report, indent=2) + '\n')
+        try:
+            options.json.write_text(json.dumps(report, indent=2) + '\n')
+        except OSError as error:
+            # The tables above hold the figures: say why there is no JSON, and fail.
+            print(f'cannot write the figures to {options.json}: {error.strerror or error}.',
+                  file=sys.stderr, flush=True)
+            failed = True
     if stop.is_set():
         return 130
     return 1 if failed else 0

@@ -37,7 +37,7 @@ from followbot_sim.run_recording import add_record_options, drain, HoldReport, R
 from followbot_sim.score import robot_simulator_name, score_values, SIMULATOR_NODE
 from followbot_sim.scorecard import BUILTIN_CONFIGURATIONS, LOCKSTEP_IMAGE_TIMEOUT_S
 from followbot_sim.sim_node import SIMULATOR_PARAMETERS
-from followbot_sim.video import add_video_node, check_video_path, VideoHold, VideoPathError
+from followbot_sim.video import add_video_node, video_path_option, VideoHold
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -120,7 +120,7 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help=f"save {CAMERA_PICTURE} (camera view with the follower's "
                              f'overlay) and {OVERVIEW_PICTURE} (course from above with the '
                              'path driven) here while running')
-    parser.add_argument('--video', type=_video_path, default=None, metavar='FILE',
+    parser.add_argument('--video', type=video_path_option, default=None, metavar='FILE',
                         help="write a video (.mp4 or .avi) of the follower's view with its "
                              'overlay beside the course from above with the path driven, in '
                              'simulated time: it plays at real speed however fast the run')
@@ -162,13 +162,6 @@ def parse_arguments(argv=None) -> argparse.Namespace:
         parser.error('--video films one robot: run several robots without it, or film each '
                      'in a launcher of its own under its namespace (-r __ns:=/robot1)')
     return options
-
-
-def _video_path(text: str) -> Path:
-    try:
-        return check_video_path(text)
-    except VideoPathError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def follower_configurations(text: str | None) -> list:

@@ -36,6 +36,7 @@ import time
 from followbot.follower_node import FollowerNode, LONGEST_IMAGE_TIMEOUT_S
 from followbot.node_runner import refuse_ros_arguments, StopSignals
 from followbot.number_options import number_in
+from followbot.output_files import output_file_option
 from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
@@ -923,7 +924,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='set a simulator parameter for every run, such as '
                              'camera_rate_hz:=30.0, over any params file; repeatable')
     output = parser.add_mutually_exclusive_group()
-    output.add_argument('--json', type=Path, default=Path('scorecard.json'), metavar='PATH',
+    output.add_argument('--json', type=output_file_option('the results'),
+                        default=Path('scorecard.json'), metavar='PATH',
                         help='where to write the results as JSON (default: scorecard.json)')
     output.add_argument('--no-json', action='store_true', help='write no JSON file')
     parser.add_argument('--plots', type=Path, default=None, metavar='DIR',
@@ -1128,7 +1130,13 @@ def main(argv=None) -> int:
               'the starts that lapped.' if options.starts > 1 else '.'))
     if not options.no_json:
         document = {'metadata': _metadata(options, argv, wall_s), 'runs': records}
-        options.json.write_text(json.dumps(document, indent=2) + '\n', encoding='utf-8')
+        try:
+            options.json.write_text(json.dumps(document, indent=2) + '\n', encoding='utf-8')
+        except OSError as error:
+            # The table above holds the figures: say why there is no JSON, and fail.
+            print(f'[{PROGRAM}] cannot write the results to {options.json}: '
+                  f'{error.strerror or error}.', file=sys.stderr, flush=True)
+            return 1
         print(f'[{PROGRAM}] results in {options.json}', file=sys.stderr, flush=True)
     if options.plots is not None:
         paths = write_plots([record for record in records if record['start'] == 1],

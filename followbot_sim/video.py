@@ -15,7 +15,6 @@ run's video gets every camera frame.
 """
 
 import math
-import os
 from pathlib import Path
 import time
 
@@ -24,6 +23,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from followbot import messages
 from followbot.follower_node import NODE_NAME as FOLLOWER_NODE
 from followbot.image_conversion import image_to_array, ImageConversionError, to_bgr
+from followbot.output_files import check_output_file, output_file_option
 from followbot_sim.answered_requests import AnsweredRequests
 from followbot_sim.course_file import load_course
 from followbot_sim.run_recording import LagHold
@@ -40,6 +40,8 @@ from sensor_msgs.msg import Image
 # FourCC of the codec for each file type: both ship with every OpenCV build (no FFmpeg
 # licence question for the user) and play in common players.
 CODECS = {'.mp4': 'mp4v', '.avi': 'MJPG'}
+# What a video file is called in messages, and its name's endings.
+VIDEO_FILE = ('a video', tuple(CODECS))
 DEBUG_IMAGE_TOPIC = FOLLOWER_NODE + '/debug_image'
 GROUND_TRUTH_TOPIC = 'ground_truth/odom'
 # The simulator's parameters the video needs: what it draws and, by default, its frame rate.
@@ -66,29 +68,20 @@ VIDEO_RESUME_LAG_S = 0.06
 VIDEO_STALL_S = 10.0
 
 
-class VideoPathError(ValueError):
-    """A video file that cannot be written: an unknown type or a folder that is not there."""
-
-
 def check_video_path(path) -> Path:
     """
     Check that a video can be written at a path, before any run starts.
 
     :param path: the file to write, ending in one of :data:`CODECS`.
     :return: the path, as a Path.
-    :raises VideoPathError: with one sentence, for another file type, a missing folder or one
+    :raises OutputPathError: with one sentence, for another file type, a missing folder or one
         this user cannot write to.
     """
-    path = Path(path)
-    if path.suffix.lower() not in CODECS:
-        raise VideoPathError(f'cannot write a video to {path}: the file name must end in '
-                             f'{" or ".join(CODECS)}.')
-    folder = path.parent
-    if not folder.is_dir():
-        raise VideoPathError(f'cannot write a video to {path}: folder {folder} does not exist.')
-    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise VideoPathError(f'cannot write a video to {path}: permission denied.')
-    return path
+    return check_output_file(path, *VIDEO_FILE)
+
+
+# The argparse type of a command's option naming a video to write.
+video_path_option = output_file_option(*VIDEO_FILE)
 
 
 class FrameSchedule:
@@ -150,7 +143,7 @@ class VideoNode(Node):
         :param period_s: simulated seconds between video frames; None for one frame per camera
             frame (the simulator's camera_rate_hz).
         :param kwargs: forwarded to :class:`rclpy.node.Node`.
-        :raises VideoPathError: if the video cannot be written at ``path``.
+        :raises OutputPathError: if the video cannot be written at ``path``.
         """
         # Its last line comes as the context shuts down, when /rosout can no longer carry it:
         # the terminal only.

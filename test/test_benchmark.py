@@ -59,6 +59,7 @@ def test_book_pipeline_sees_nothing_without_yellow():
     ['--rates', '0'],
     ['--rates', '20,nan'],
     ['--simulated-seconds', 'nan'],
+    ['--json', 'no/such/folder/b.json'],
     ['--frames', '0'],
     ['--simulated-seconds', '1'],
     ['--domain-id', '300'],

@@ -268,6 +268,8 @@ def test_bad_input_is_one_line_and_status_2(tmp_path, arguments, message, capsys
     (['frame.png', '--camera-info', 'c.yaml', '--camera-height-m', '0', '--camera-pitch-deg',
       '10'], "argument --camera-height-m: must be a number in [0.01, 10], got '0'"),
     (['frame.png', '--frame', '-1'], "argument --frame: must be a whole number >= 0, got '-1'"),
+    (['frame.png', '--picture', 'mask.gif'], 'must end in .png, .jpg or .jpeg'),
+    (['frame.png', '--output', 'no/such/folder/p.yaml'], 'folder no/such/folder does not exist'),
 ])
 def test_bad_arguments_are_one_line_and_status_2(arguments, message, capsys):
     with pytest.raises(SystemExit) as exit_info:

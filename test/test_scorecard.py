@@ -234,6 +234,7 @@ def test_stuck_only_after_a_whole_window_without_progress():
     (['--starts', '0'], f'must be a whole number in [1, {len(STARTS)}]'),
     (['--starts', str(len(STARTS) + 1)], f'must be a whole number in [1, {len(STARTS)}]'),
     (['--time-limit-s', 'nan'], "argument --time-limit-s: must be a number > 0, got 'nan'"),
+    (['--json', 'no/such/folder/s.json'], 'folder no/such/folder does not exist'),
     (['--starts', '2', '--sim-param', 'start_lateral_offset_m:=0.01'],
      'give start_lateral_offset_m with --sim-param only without --starts'),
 ])

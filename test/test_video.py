@@ -7,12 +7,12 @@ import time
 
 from conftest import child_environment, run_domain_id, spin_until
 import cv2
+from followbot.output_files import OutputPathError
 from followbot_sim.course_file import load_course
 from followbot_sim.run_recording import WAIT_REPORT_S
 from followbot_sim.topdown import side_by_side, TopDownView
 from followbot_sim.video import (check_video_path, FrameSchedule, VIDEO_HOLD_LAG_S,
-                                 VIDEO_RESUME_LAG_S, VIDEO_STALL_S, VideoHold, VideoNode,
-                                 VideoPathError)
+                                 VIDEO_RESUME_LAG_S, VIDEO_STALL_S, VideoHold, VideoNode)
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -114,9 +114,9 @@ def test_frame_schedule_refuses_a_period_that_is_not_positive(period_s):
 def test_video_path_takes_mp4_and_avi_only(tmp_path):
     assert check_video_path(tmp_path / 'run.mp4') == tmp_path / 'run.mp4'
     assert check_video_path(tmp_path / 'run.AVI') == tmp_path / 'run.AVI'
-    with pytest.raises(VideoPathError, match=r'must end in \.mp4 or \.avi'):
+    with pytest.raises(OutputPathError, match=r'must end in \.mp4 or \.avi'):
         check_video_path(tmp_path / 'run.mkv')
-    with pytest.raises(VideoPathError, match='does not exist'):
+    with pytest.raises(OutputPathError, match='does not exist'):
         check_video_path(tmp_path / 'missing' / 'run.mp4')
 
 
