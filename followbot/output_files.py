@@ -42,6 +42,27 @@ def check_output_file(path, what: str, suffixes=()) -> Path:
     return path
 
 
+def make_output_folder(path, what: str) -> Path:
+    """
+    Make the folder a command writes files into (and its parents), before any work starts.
+
+    :param path: the folder; it may exist already.
+    :param what: what goes into it, for the message ('the pictures').
+    :return: the path, as a Path.
+    :raises OutputPathError: with one sentence, for a file in the way or a folder this user
+        cannot make or write to.
+    """
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise OutputPathError(f'cannot write {what} into {path}: '
+                              f'{error.strerror or error}.') from None
+    if not os.access(path, os.W_OK):
+        raise OutputPathError(f'cannot write {what} into {path}: permission denied.')
+    return path
+
+
 def output_file_option(what: str, suffixes=()):
     """
     Return an argparse ``type`` for an option naming a file to write (see check_output_file).
@@ -50,9 +71,26 @@ def output_file_option(what: str, suffixes=()):
     :param suffixes: the file name endings accepted; any when empty.
     :return: the function argparse calls with the option's text.
     """
+    return _option(check_output_file, what, suffixes)
+
+
+def output_folder_option(what: str):
+    """
+    Return an argparse ``type`` for an option naming a folder to write into.
+
+    The folder is made as the command line is read (see make_output_folder).
+
+    :param what: what goes into it, for the message.
+    :return: the function argparse calls with the option's text.
+    """
+    return _option(make_output_folder, what)
+
+
+def _option(check, what: str, *arguments):
+    """Return an argparse ``type`` calling ``check(text, what, *arguments)``."""
     def read(text: str) -> Path:
         try:
-            return check_output_file(text, what, suffixes)
+            return check(text, what, *arguments)
         except OutputPathError as error:
             raise argparse.ArgumentTypeError(str(error)) from None
 

@@ -43,7 +43,7 @@ from followbot.image_conversion import (array_to_image, dtype_of, expected_shape
 from followbot.line_detector import DetectorConfig, hsv_bounds, LineDetector
 from followbot.node_runner import die_with_parent, refuse_ros_arguments, StopSignals
 from followbot.number_options import number_in
-from followbot.output_files import output_file_option
+from followbot.output_files import output_file_option, output_folder_option
 from followbot.transport import (environment_without_profile, keep_large_buffers,
                                  USER_CONFIGURATION_VARIABLES)
 from followbot_sim import real_frames
@@ -664,7 +664,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='ROS domain of the runs, which take turns in it (default: a free '
                              f'one in {FIRST_DOMAIN_ID}-{FIRST_DOMAIN_ID + DOMAIN_ID_SPREAD - 1}, '
                              'which no other benchmark, scorecard or test run then takes)')
-    parser.add_argument('--real-frame-pictures', type=Path, default=None, metavar='DIR',
+    parser.add_argument('--real-frame-pictures', type=output_folder_option('the pictures'),
+                        default=None, metavar='DIR',
                         help='real_frames: save a schematic of every frame not all right '
                              "(labels and verdicts, none of the frame's pixels) in DIR")
     parser.add_argument('--json', type=output_file_option('the figures'), default=None,

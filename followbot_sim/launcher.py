@@ -25,6 +25,7 @@ from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_na
                                    ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
                                    StopSignals)
 from followbot.number_options import number_in, parameter_option
+from followbot.output_files import output_folder_option
 from followbot.package_files import share_file
 from followbot.recording import RecordingError
 from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
@@ -116,7 +117,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'for all): ' + ', '.join(BUILTIN_CONFIGURATIONS) + ' or the path '
                              "of a ROS parameters file (default: the follower's own "
                              'parameters)')
-    parser.add_argument('--pictures-dir', type=Path, default=None, metavar='DIR',
+    parser.add_argument('--pictures-dir', type=output_folder_option('the pictures'), default=None,
+                        metavar='DIR',
                         help=f"save {CAMERA_PICTURE} (camera view with the follower's "
                              f'overlay) and {OVERVIEW_PICTURE} (course from above with the '
                              'path driven) here while running')

@@ -13,6 +13,7 @@ so its queues never overflow; held time is wall time only, simulated time stands
 
 import time
 
+from followbot.output_files import output_file_option, output_folder_option
 from followbot_sim.answered_requests import SimulatorPause
 from followbot_sim.recorder import Recorder
 from followbot_sim.steady_condition import SteadyCondition
@@ -151,10 +152,12 @@ def add_record_options(parser, one_file_per_run: bool = False) -> None:
                 '/tf, /tf_static, /clock')
     if one_file_per_run:
         parser.add_argument('--record', metavar='DIR', default=None,
+                            type=output_folder_option('the recordings'),
                             help='record each run into DIR/SCENARIO-CONFIGURATION.mcap '
                                  f'(rosbag2-compatible MCAP: {contents})')
     else:
         parser.add_argument('--record', metavar='PATH', default=None,
+                            type=output_file_option('the recording'),
                             help='record the run into this rosbag2-compatible MCAP file '
                                  f'({contents}); the simulator starts once the recorder hears '
                                  'every topic')

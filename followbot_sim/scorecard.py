@@ -36,7 +36,7 @@ import time
 from followbot.follower_node import FollowerNode, LONGEST_IMAGE_TIMEOUT_S
 from followbot.node_runner import refuse_ros_arguments, StopSignals
 from followbot.number_options import number_in
-from followbot.output_files import output_file_option
+from followbot.output_files import output_file_option, output_folder_option
 from followbot.package_files import share_file
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
@@ -928,7 +928,8 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         default=Path('scorecard.json'), metavar='PATH',
                         help='where to write the results as JSON (default: scorecard.json)')
     output.add_argument('--no-json', action='store_true', help='write no JSON file')
-    parser.add_argument('--plots', type=Path, default=None, metavar='DIR',
+    parser.add_argument('--plots', type=output_folder_option('the plots'), default=None,
+                        metavar='DIR',
                         help='also draw PNG plots here: lap times, and for each scenario the '
                              'distance from the line and the speed along the course (from the '
                              'first start)')
@@ -948,13 +949,6 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     if options.starts > 1 and given_starts:
         parser.error(f'--starts {options.starts} puts the robot down at its own starts: give '
                      f'{given_starts[0]} with --sim-param only without --starts.')
-    if options.plots is not None:
-        # Before the runs, not after minutes of them.
-        try:
-            options.plots.mkdir(parents=True, exist_ok=True)
-        except OSError as error:
-            parser.error(f'--plots: cannot make folder {options.plots}: '
-                         f'{error.strerror or error}.')
     runs = len(options.scenarios) * len(options.configurations) * options.starts
     options.workers = min(options.jobs, runs)
     options.domain_reservation = None
@@ -1085,13 +1079,6 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     options = parse_arguments(argv)
     tasks = _tasks(options)
-    if options.record is not None:
-        try:
-            Path(options.record).mkdir(parents=True, exist_ok=True)
-        except OSError as error:
-            print(f'[{PROGRAM}] Cannot record into {options.record}: '
-                  f'{error.strerror or error}.', file=sys.stderr, flush=True)
-            return 2
     starts = f" x {_count(options.starts, 'start')}" if options.starts > 1 else ''
     print(f"[{PROGRAM}] {_count(len(tasks), 'run')} "
           f"({_count(len(options.configurations), 'configuration')} x "

@@ -153,3 +153,15 @@ def test_followers_of_a_lockstep_run_wait_for_a_loaded_simulator(lockstep, expec
     # In lockstep the robot moves only after each answer: the wall-time watchdog gets its
     # longest setting there, so that runs do not depend on the machine's load.
     assert launcher.follower_parameters(lockstep) == expected
+
+
+@pytest.mark.parametrize('option', ['--pictures-dir', '--record', '--video'])
+def test_followbot_refuses_a_place_it_cannot_write_before_it_starts(option, tmp_path, capsys):
+    blocker = tmp_path / 'file'
+    blocker.write_text('not a folder')
+    with pytest.raises(SystemExit) as exit_info:
+        launcher.parse_arguments([option, str(blocker / 'run.mp4')])
+    assert exit_info.value.code == 2
+    errors = [line for line in capsys.readouterr().err.splitlines()
+              if line.startswith('followbot: error:')]
+    assert len(errors) == 1 and f'argument {option}: cannot write' in errors[0]

@@ -2,7 +2,8 @@
 
 import argparse
 
-from followbot.output_files import check_output_file, output_file_option, OutputPathError
+from followbot.output_files import (check_output_file, make_output_folder, output_file_option,
+                                    OutputPathError)
 import pytest
 
 
@@ -31,3 +32,17 @@ def test_the_option_type_gives_argparse_the_same_sentence(tmp_path):
     assert option(str(tmp_path / 'b.json')) == tmp_path / 'b.json'
     with pytest.raises(argparse.ArgumentTypeError, match='does not exist'):
         option(str(tmp_path / 'missing' / 'b.json'))
+
+
+def test_a_folder_to_write_into_is_made_with_its_parents(tmp_path):
+    folder = tmp_path / 'runs' / 'today'
+    assert make_output_folder(folder, 'the pictures') == folder
+    assert folder.is_dir()
+    assert make_output_folder(folder, 'the pictures') == folder
+
+
+def test_a_file_in_the_way_of_a_folder_is_refused(tmp_path):
+    (tmp_path / 'runs').write_text('a file')
+    with pytest.raises(OutputPathError) as error:
+        make_output_folder(tmp_path / 'runs', 'the pictures')
+    assert str(error.value) == f'cannot write the pictures into {tmp_path}/runs: File exists.'

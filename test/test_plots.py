@@ -97,4 +97,5 @@ def test_scorecard_refuses_a_plots_folder_it_cannot_make(tmp_path, capsys):
         main(['--plots', str(blocker / 'plots')])
     assert exit_info.value.code == 2
     errors = [line for line in capsys.readouterr().err.splitlines() if 'error:' in line]
-    assert len(errors) == 1 and '--plots: cannot make folder' in errors[0]
+    assert len(errors) == 1 and (f'argument --plots: cannot write the plots into '
+                                 f'{blocker}/plots: Not a directory.') in errors[0]
