@@ -159,6 +159,9 @@ def parse_arguments(argv=None, prog=PROGRAM):
     options.ros_arguments = ros_arguments
     if options.source is None and options.topic is None:
         parser.error('give an image file or recording, or a live --topic')
+    if options.output is not None and _picture_path(options) == options.output:
+        parser.error(f'--output {options.output} is where the picture would go: give the '
+                     'parameters another name, or the picture its own with --picture')
     given = [getattr(options, name) is not None for name in CAMERA_OPTIONS]
     if any(given) and not all(given):
         missing = ', '.join('--' + name.replace('_', '-')

@@ -269,6 +269,9 @@ def test_bad_input_is_one_line_and_status_2(tmp_path, arguments, message, capsys
       '10'], "argument --camera-height-m: must be a number in [0.01, 10], got '0'"),
     (['frame.png', '--frame', '-1'], "argument --frame: must be a whole number >= 0, got '-1'"),
     (['frame.png', '--picture', 'mask.gif'], 'must end in .png, .jpg or .jpeg'),
+    (['frame.png', '--output', 'params.png'], 'is where the picture would go'),
+    (['frame.png', '--output', 'same.jpg', '--picture', 'same.jpg'],
+     'is where the picture would go'),
     (['frame.png', '--output', 'no/such/folder/p.yaml'], 'folder no/such/folder does not exist'),
 ])
 def test_bad_arguments_are_one_line_and_status_2(arguments, message, capsys):
