@@ -27,6 +27,7 @@ from followbot.command_comparison import (answers_by_order, answers_by_status, C
 from followbot.follower_node import COMPRESSED_SUFFIX, FollowerNode, LONGEST_IMAGE_TIMEOUT_S
 from followbot.node_runner import init_rclpy, RosStartError
 from followbot.number_options import number_in
+from followbot.parameters_file import check_reaches, ParametersFileError
 from followbot.recording import (header_stamp_ns, import_message_class, read_messages,
                                  RecordingError)
 from geometry_msgs.msg import Twist, TwistStamped
@@ -95,7 +96,9 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                              'counted as a match (default: 0, identical)')
     parser.add_argument('--params-file', default=None, metavar='FILE',
                         help="the follower's parameters (as for ros2 run followbot follower "
-                             '--ros-args --params-file FILE); its defaults when absent')
+                             '--ros-args --params-file FILE, but the follower runs under the '
+                             "replay's namespace: its section must reach it there, as "
+                             "'/**/follower' does); its defaults when absent")
     parser.add_argument('--camera-topic', default=None, metavar='TOPIC',
                         help="the recording's Image or CompressedImage topic (needed only when "
                              'it has several)')
@@ -107,9 +110,19 @@ def parse_arguments(argv=None) -> argparse.Namespace:
                         help='longest wait (wall time) for the answer to one frame (default: '
                              f'{DEFAULT_ANSWER_TIMEOUT_S:g})')
     options = parser.parse_args(argv)
-    if options.params_file is not None and not os.path.isfile(options.params_file):
-        parser.error(f'--params-file {options.params_file}: no such file')
+    if options.params_file is not None:
+        # The follower runs under the replay's own namespace: a section written for
+        # `ros2 run followbot follower` alone (follower:) would not reach it, silently.
+        try:
+            check_reaches(options.params_file, f'{replay_namespace()}/{FollowerNode.NODE_NAME}')
+        except ParametersFileError as error:
+            parser.error(f'--params-file: {error}')
     return options
+
+
+def replay_namespace() -> str:
+    """Return the namespace of this process's replay: its follower's and feeder's topics."""
+    return f'{NAMESPACE_PREFIX}{os.getpid()}'
 
 
 class RecordingPlan:
@@ -319,7 +332,7 @@ def replay(plan: RecordingPlan, path, options, context: Context) -> tuple:
     :raises RecordingError: if the file cannot be read on the second pass.
     :raises RuntimeError: if the follower does not connect.
     """
-    namespace = f'{NAMESPACE_PREFIX}{os.getpid()}'
+    namespace = replay_namespace()
     compressed = plan.camera_type == COMPRESSED_TYPE
     # The follower's /clock is the replay's own: a simulator on the domain cannot drive it.
     follower = FollowerNode(

@@ -20,6 +20,7 @@ import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from followbot import calibrate
 from followbot import messages
+from followbot.follower_node import NODE_NAME as FOLLOWER_NODE
 from followbot.image_conversion import image_to_array, to_bgr
 from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_namespace,
                                    ROS_ARGS_END, ROS_ARGS_FLAG, RosStartError, split_ros_arguments,
@@ -27,6 +28,7 @@ from followbot.node_runner import (die_with_parent, init_rclpy, node_name_and_na
 from followbot.number_options import number_in, parameter_option
 from followbot.output_files import output_folder_option
 from followbot.package_files import share_file
+from followbot.parameters_file import check_reaches, ParametersFileError
 from followbot.recording import RecordingError
 from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim import soak
@@ -157,6 +159,13 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     elif options.configs and len(options.configs) != options.robots:
         parser.error(f'--configs names {len(options.configs)} configurations for '
                      f'{options.robots} robots: give one per robot, or one for all')
+    # A file's follower section must reach each robot's follower, under its namespace.
+    name, namespace = node_name_and_namespace(FOLLOWER_NODE, ros_arguments)
+    for robot, (_, path) in zip(robot_names(options.robots), options.configs):
+        try:
+            check_reaches(path, f"{namespace.rstrip('/')}/{robot_prefix(robot)}{name}")
+        except ParametersFileError as error:
+            parser.error(f'--configs: {error}')
     if options.record and options.robots > 1:
         parser.error('--record records one robot: run several robots without it, or record '
                      'each in a launcher of its own under its namespace (-r __ns:=/robot1)')

@@ -38,6 +38,7 @@ from followbot.node_runner import refuse_ros_arguments, StopSignals
 from followbot.number_options import number_in
 from followbot.output_files import output_file_option, output_folder_option
 from followbot.package_files import share_file
+from followbot.parameters_file import read_sections
 from followbot.transport import keep_large_buffers
 from followbot_sim.course_file import COURSE_FILE_SUFFIXES, load_course
 from followbot_sim.course_library import COURSES
@@ -218,21 +219,6 @@ def select_scenarios(names=None) -> list:
     return scenarios
 
 
-def _read_params_file(path: Path) -> None:
-    try:
-        document = yaml.safe_load(path.read_text(encoding='utf-8'))
-    except FileNotFoundError:
-        raise ValueError(f'Parameters file {path} does not exist.') from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise ValueError(f'Cannot read parameters file {path}: {error}.') from None
-    except yaml.YAMLError as error:
-        raise ValueError(f'Parameters file {path} is not valid YAML: '
-                         f'{" ".join(str(error).split())}') from None
-    if not isinstance(document, dict):
-        raise ValueError(f'Parameters file {path} must map node names to '
-                         '{ros__parameters: {...}}, as ROS 2 parameters files do.')
-
-
 def select_configurations(params_files=(), names=None) -> list:
     """
     Build the configurations to compare.
@@ -248,7 +234,7 @@ def select_configurations(params_files=(), names=None) -> list:
                       for name, file_name in BUILTIN_CONFIGURATIONS.items()]
     for params_file in params_files:
         params_file = Path(params_file)
-        _read_params_file(params_file)
+        read_sections(params_file)
         name = params_file.stem
         if any(configuration.name == name for configuration in configurations):
             raise ValueError(

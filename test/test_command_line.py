@@ -4,6 +4,7 @@ import subprocess
 import sys
 
 from conftest import child_environment
+from followbot import replay
 from followbot.node_runner import split_ros_arguments
 from followbot_sim import benchmark, latency_probe, launcher, scorecard
 import pytest
@@ -165,3 +166,33 @@ def test_followbot_refuses_a_place_it_cannot_write_before_it_starts(option, tmp_
     errors = [line for line in capsys.readouterr().err.splitlines()
               if line.startswith('followbot: error:')]
     assert len(errors) == 1 and f'argument {option}: cannot write' in errors[0]
+
+
+@pytest.mark.parametrize('argv, node', [
+    (['--robots', '2'], '/r1/follower'),
+    (['--ros-args', '-r', '__ns:=/team'], '/team/follower'),
+])
+def test_a_configuration_must_reach_each_followers_namespace(argv, node, tmp_path, capsys):
+    # Written for `ros2 run followbot follower`: rcl would give a namespaced follower nothing.
+    params_file = tmp_path / 'slow.yaml'
+    params_file.write_text('follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
+    assert launcher.parse_arguments(['--configs', str(params_file)]).configs
+    with pytest.raises(SystemExit) as exit_info:
+        launcher.parse_arguments(['--configs', str(params_file), *argv])
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err.splitlines()[-1]
+    assert f'gives nothing to the node {node}' in error and "'/**/follower'" in error
+    params_file.write_text('/**/follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
+    assert launcher.parse_arguments(['--configs', str(params_file), *argv]).configs
+
+
+def test_a_replay_refuses_parameters_that_would_not_reach_its_follower(tmp_path, capsys):
+    params_file = tmp_path / 'slow.yaml'
+    params_file.write_text('follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
+    with pytest.raises(SystemExit) as exit_info:
+        replay.parse_arguments(['run.mcap', '--params-file', str(params_file)])
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err.splitlines()[-1]
+    assert f'gives nothing to the node {replay.replay_namespace()}/follower' in error
+    params_file.write_text('/**/follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
+    assert replay.parse_arguments(['run.mcap', '--params-file', str(params_file)]).params_file
