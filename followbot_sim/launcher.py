@@ -33,6 +33,7 @@ from followbot.recording import RecordingError
 from followbot.transport import environment_with_profile, keep_large_buffers, use_package_profile
 from followbot_sim import soak
 from followbot_sim.answered_requests import SimulatorPause
+from followbot_sim.course_file import load_course
 from followbot_sim.course_library import COURSES
 from followbot_sim.domains import domain_id_option
 from followbot_sim.robots import MAX_ROBOTS, robot_names, robot_prefix, SINGLE_ROBOT
@@ -145,6 +146,12 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     options.ros_arguments = ros_arguments
     if options.soak_period is not None and options.duration == 0:
         parser.error('--soak-period needs a --duration')
+    if options.course is not None:
+        # Here, once: a bad course file is one line before any node starts.
+        try:
+            load_course(options.course)
+        except ValueError as error:
+            parser.error(f'--course: {error}')
     try:
         options.configs = follower_configurations(options.configs)
     except ValueError as error:

@@ -64,8 +64,10 @@ def test_invalid_ros_arguments_are_refused_in_one_line(command, tmp_path):
     (['--real-time-factor', '500'], 'argument --real-time-factor: must be a number in [0, 100]'),
     (['--report-period', '0'], "argument --report-period: must be a number > 0, got '0'"),
     (['--domain-id', '300'], 'argument --domain-id: must be a whole number in [0, 232]'),
+    (['--course', 'nonesuch'], "--course: unknown course 'nonesuch': give a built-in course"),
+    (['--course', 'no/such/course.yaml'], '--course: cannot read course file'),
 ])
-def test_followbot_refuses_numbers_out_of_range_before_it_starts_a_node(argv, message, capsys):
+def test_followbot_refuses_bad_values_before_it_starts_a_node(argv, message, capsys):
     with pytest.raises(SystemExit) as exit_info:
         launcher.parse_arguments(argv)
     assert exit_info.value.code == 2
