@@ -346,11 +346,13 @@ def test_followbot_killed_outright_takes_its_nodes_with_it():
 
 
 def test_followbot_fails_when_a_node_fails():
-    launcher = run_launcher(run_domain_id(), '--course', 'no_such',
-                            '--duration', '5')
+    # Only the simulator declares camera_rate_hz: it refuses the value as it starts.
+    launcher = run_launcher(run_domain_id(), '--duration', '5', '--ros-args', '-p',
+                            'camera_rate_hz:=500.0')
     output, _ = launcher.communicate(timeout=60)
     assert launcher.returncode != 0, output
-    assert "unknown course 'no_such'" in output
+    assert 'Parameter camera_rate_hz out of range' in output
+    assert "failed: {'sim': 2}" in output
 
 
 def test_nodes_stop_on_sigint_even_when_started_with_it_ignored():
