@@ -97,6 +97,24 @@ def node_command(module: str, *ros_arguments: str) -> list:
     return [sys.executable, '-m', module, '--ros-args', *ros_arguments]
 
 
+def refusal(parse, argv, capsys) -> str:
+    """
+    Return the one error line with which a command refuses its arguments.
+
+    :param parse: the command's function that reads its command line (argparse inside).
+    :param argv: the arguments, without the program name.
+    :param capsys: pytest's capsys fixture.
+    :return: the line ``PROG: error: ...``; the command must have ended with exit code 2 and
+        written no other error line.
+    """
+    with pytest.raises(SystemExit) as exit_info:
+        parse(argv)
+    assert exit_info.value.code == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if ': error: ' in line]
+    assert len(errors) == 1, errors
+    return errors[0]
+
+
 def stop_process(process: subprocess.Popen) -> int:
     """Stop a child as Ctrl-C would and return its exit code; kill it if it does not stop."""
     if process.poll() is None:

@@ -3,7 +3,7 @@
 import subprocess
 import sys
 
-from conftest import child_environment
+from conftest import child_environment, refusal
 from followbot import replay
 from followbot.node_runner import split_ros_arguments
 from followbot_sim import benchmark, latency_probe, launcher, scorecard
@@ -68,12 +68,8 @@ def test_invalid_ros_arguments_are_refused_in_one_line(command, tmp_path):
     (['--course', 'no/such/course.yaml'], '--course: cannot read course file'),
 ])
 def test_followbot_refuses_bad_values_before_it_starts_a_node(argv, message, capsys):
-    with pytest.raises(SystemExit) as exit_info:
-        launcher.parse_arguments(argv)
-    assert exit_info.value.code == 2
-    errors = [line for line in capsys.readouterr().err.splitlines()
-              if line.startswith('followbot: error:')]
-    assert len(errors) == 1 and message in errors[0]
+    error = refusal(launcher.parse_arguments, argv, capsys)
+    assert error.startswith('followbot: error:') and message in error
 
 
 @pytest.mark.parametrize('command', [scorecard, benchmark], ids=lambda module: module.__name__)
@@ -122,10 +118,7 @@ def test_a_parameters_file_is_a_configuration_named_by_its_stem(tmp_path):
     (['--robots', '2', '--video', 'race.mp4'], '--video films one robot'),
 ])
 def test_followbot_refuses_robots_and_configs_that_do_not_match(argv, message, capsys):
-    with pytest.raises(SystemExit) as exit_info:
-        launcher.parse_arguments(argv)
-    assert exit_info.value.code == 2
-    assert message in capsys.readouterr().err
+    assert message in refusal(launcher.parse_arguments, argv, capsys)
 
 
 def test_each_racing_follower_runs_in_its_robots_namespace_under_the_users():
@@ -162,12 +155,8 @@ def test_followers_of_a_lockstep_run_wait_for_a_loaded_simulator(lockstep, expec
 def test_followbot_refuses_a_place_it_cannot_write_before_it_starts(option, tmp_path, capsys):
     blocker = tmp_path / 'file'
     blocker.write_text('not a folder')
-    with pytest.raises(SystemExit) as exit_info:
-        launcher.parse_arguments([option, str(blocker / 'run.mp4')])
-    assert exit_info.value.code == 2
-    errors = [line for line in capsys.readouterr().err.splitlines()
-              if line.startswith('followbot: error:')]
-    assert len(errors) == 1 and f'argument {option}: cannot write' in errors[0]
+    error = refusal(launcher.parse_arguments, [option, str(blocker / 'run.mp4')], capsys)
+    assert error.startswith(f'followbot: error: argument {option}: cannot write')
 
 
 @pytest.mark.parametrize('argv, node', [
@@ -179,10 +168,7 @@ def test_a_configuration_must_reach_each_followers_namespace(argv, node, tmp_pat
     params_file = tmp_path / 'slow.yaml'
     params_file.write_text('follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
     assert launcher.parse_arguments(['--configs', str(params_file)]).configs
-    with pytest.raises(SystemExit) as exit_info:
-        launcher.parse_arguments(['--configs', str(params_file), *argv])
-    assert exit_info.value.code == 2
-    error = capsys.readouterr().err.splitlines()[-1]
+    error = refusal(launcher.parse_arguments, ['--configs', str(params_file), *argv], capsys)
     assert f'gives nothing to the node {node}' in error and "'/**/follower'" in error
     params_file.write_text('/**/follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
     assert launcher.parse_arguments(['--configs', str(params_file), *argv]).configs
@@ -191,10 +177,8 @@ def test_a_configuration_must_reach_each_followers_namespace(argv, node, tmp_pat
 def test_a_replay_refuses_parameters_that_would_not_reach_its_follower(tmp_path, capsys):
     params_file = tmp_path / 'slow.yaml'
     params_file.write_text('follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
-    with pytest.raises(SystemExit) as exit_info:
-        replay.parse_arguments(['run.mcap', '--params-file', str(params_file)])
-    assert exit_info.value.code == 2
-    error = capsys.readouterr().err.splitlines()[-1]
+    error = refusal(replay.parse_arguments, ['run.mcap', '--params-file', str(params_file)],
+                    capsys)
     assert f'gives nothing to the node {replay.replay_namespace()}/follower' in error
     params_file.write_text('/**/follower:\n  ros__parameters:\n    linear_speed_mps: 0.1\n')
     assert replay.parse_arguments(['run.mcap', '--params-file', str(params_file)]).params_file

@@ -7,7 +7,7 @@ simulator and follower in worker processes for three seconds of simulated time p
 
 import json
 
-from conftest import run_domain_id
+from conftest import refusal, run_domain_id
 from followbot_sim.scorecard import (format_starts_table, format_table, main,
                                      parse_sim_parameter, run_metrics, SCENARIOS,
                                      select_configurations, select_scenarios, STARTS,
@@ -239,12 +239,8 @@ def test_stuck_only_after_a_whole_window_without_progress():
      'give start_lateral_offset_m with --sim-param only without --starts'),
 ])
 def test_bad_options_end_with_one_clear_line(capsys, arguments, message):
-    with pytest.raises(SystemExit) as exit_info:
-        main(arguments)
-    assert exit_info.value.code != 0
-    error_lines = [line for line in capsys.readouterr().err.splitlines()
-                   if line.startswith('scorecard: error:')]
-    assert len(error_lines) == 1 and message in error_lines[0]
+    error = refusal(main, arguments, capsys)
+    assert error.startswith('scorecard: error:') and message in error
 
 
 def test_scorecard_runs_the_nodes_and_writes_the_table_and_json(tmp_path, monkeypatch, capsys):
