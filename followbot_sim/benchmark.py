@@ -303,8 +303,9 @@ def measure_real_frames(pictures_dir: Path | None = None) -> dict:
     """
     Score the default follower's detector on the labelled real camera frames, per source.
 
-    :param pictures_dir: where to save a schematic (labels and verdicts, none of the frame's
-        pixels) of every frame with a band not right, or None.
+    :param pictures_dir: the folder (made as --real-frame-pictures is read) where to save a
+        schematic (labels and verdicts, none of the frame's pixels) of every frame with a band
+        not right, or None.
     :return: ``folder`` and ``rows`` (source, colour, PerceptionTally fields), or ``error``
         saying why there are no frames.
     """
@@ -320,7 +321,6 @@ def measure_real_frames(pictures_dir: Path | None = None) -> dict:
             tally, results = real_frames.score_source(source, folder, colour, frames)
             for result in results:
                 if pictures_dir is not None and set(result.verdicts) != {RIGHT}:
-                    pictures_dir.mkdir(parents=True, exist_ok=True)
                     cv2.imwrite(str(pictures_dir / f'{Path(result.frame.name).stem}_{colour}.png'),
                                 real_frames.draw_schematic(result))
             rows.append({'source': source.name, 'colour': colour,

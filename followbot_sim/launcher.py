@@ -255,7 +255,8 @@ class MonitorNode(Node):
         Subscribe to the score and, when pictures are wanted, to the two images.
 
         :param report_period_s: simulated seconds between progress lines.
-        :param pictures_dir: folder for the pictures, or None for none.
+        :param pictures_dir: folder for the pictures (made as --pictures-dir is read), or None
+            for none.
         :param simulator: the fully qualified name of the simulator whose scores are reported
             (other robots' simulators may score on /diagnostics too).
         :param robots: robot name -> the label of its lines (such as ``r1 (book)``), for a
@@ -275,7 +276,6 @@ class MonitorNode(Node):
         self._pictures_dir = pictures_dir
         self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback, 10)
         if pictures_dir is not None:
-            pictures_dir.mkdir(parents=True, exist_ok=True)
             image_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
             self.create_subscription(Image, robot_prefix(next(iter(robots))) + DEBUG_IMAGE_TOPIC,
                                      self.debug_image_callback, image_qos)
