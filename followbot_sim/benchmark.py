@@ -306,25 +306,29 @@ def measure_real_frames(pictures_dir: Path | None = None) -> dict:
     :param pictures_dir: the folder (made as --real-frame-pictures is read) where to save a
         schematic (labels and verdicts, none of the frame's pixels) of every frame with a band
         not right, or None.
-    :return: ``folder`` and ``rows`` (source, colour, PerceptionTally fields), or ``error``
-        saying why there are no frames.
+    :return: ``folder`` and ``rows`` (source, colour, size: the share of the frames' size
+        they were scored at, PerceptionTally fields), or ``error`` saying why there are no
+        frames. Every source and colour is scored as taken, then at half size.
     """
     folder, reason = real_frames.frames_folder()
     if folder is None:
         return {'error': reason}
     rows = []
-    for source in real_frames.load_labels():
-        for colour in real_frames.LABELLED_COLOURS:
-            frames = [frame for frame in source.frames if frame.polylines(colour)]
-            if not frames:
-                continue
-            tally, results = real_frames.score_source(source, folder, colour, frames)
-            for result in results:
-                if pictures_dir is not None and set(result.verdicts) != {RIGHT}:
-                    cv2.imwrite(str(pictures_dir / f'{Path(result.frame.name).stem}_{colour}.png'),
-                                real_frames.draw_schematic(result))
-            rows.append({'source': source.name, 'colour': colour,
-                         **dataclasses.asdict(tally)})
+    for size_factor in (1.0, real_frames.HALF_SIZE):
+        for source in real_frames.load_labels():
+            for colour in real_frames.LABELLED_COLOURS:
+                frames = [frame for frame in source.frames if frame.polylines(colour)]
+                if not frames:
+                    continue
+                tally, results = real_frames.score_source(source, folder, colour, frames,
+                                                          size_factor=size_factor)
+                for result in results:
+                    if (pictures_dir is not None and size_factor == 1.0
+                            and set(result.verdicts) != {RIGHT}):
+                        name = f'{Path(result.frame.name).stem}_{colour}.png'
+                        cv2.imwrite(str(pictures_dir / name), real_frames.draw_schematic(result))
+                rows.append({'source': source.name, 'colour': colour, 'size': size_factor,
+                             **dataclasses.asdict(tally)})
     return {'folder': str(folder), 'rows': rows}
 
 
@@ -340,12 +344,13 @@ def format_real_frames(results: dict) -> str:
     rows = []
     for row in results['rows']:
         tally = PerceptionTally(**{key: row[key] for key in row
-                                   if key not in ('source', 'colour')})
-        rows.append((row['source'], row['colour'], tally.frames, tally.bands,
+                                   if key not in ('source', 'colour', 'size')})
+        size = 'as taken' if row['size'] == 1.0 else f"× {row['size']:g}"
+        rows.append((row['source'], row['colour'], size, tally.frames, tally.bands,
                      f'{100 * tally.right_share:.1f}', f'{100 * tally.false_share:.1f}',
                      f'{100 * tally.share(tally.missed):.1f}', tally.confident_false_frames))
-    return markdown_table(['source', 'line colour (preset)', 'frames', 'bands', 'right %',
-                           'false %', 'missed %', 'frames confidently false'], rows)
+    return markdown_table(['source', 'line colour (preset)', 'frame size', 'frames', 'bands',
+                           'right %', 'false %', 'missed %', 'frames confidently false'], rows)
 
 
 class ChildProcess:
@@ -725,7 +730,8 @@ def main(argv=None) -> int:
             real = measure_real_frames(options.real_frame_pictures)
             report['real_frames'] = real
             print('## The default follower on real camera frames (per band, against labels made '
-                  f'by looking)\n\n{format_real_frames(real)}\n', flush=True)
+                  'by looking; as taken, then reduced to half size with the camera calibration '
+                  f'scaled)\n\n{format_real_frames(real)}\n', flush=True)
         if 'latency' in options.sections and not stop.is_set():
             frames_file = folder / 'frames.npy'
             np.save(frames_file, frames_bgr)

@@ -40,6 +40,13 @@ SCHEMATIC_BAND_BGR = (140, 140, 140)
 SCHEMATIC_VERDICT_BGR = {'right': (0, 200, 0), 'false': (0, 0, 255), 'missed': (255, 0, 255)}
 SCHEMATIC_MARK_RADIUS_PX = 7
 SCHEMATIC_TEXT_BGR = (255, 255, 255)
+# The frames are also scored at half their size: a 320x240 camera (the TurtleBot3 camera of
+# the volvo-tb3 project, a USB camera on a slow link) sees the scene much as the frame
+# averaged over squares of 2x2 pixels. The follower's configuration stays the same: only the
+# camera's calibration follows the image size, as camera_info does.
+HALF_SIZE = 0.5
+CAMERA_PIXEL_FIELDS = ('fx_px', 'fy_px')
+CAMERA_CENTRE_FIELDS = ('cx_px', 'cy_px')
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,6 +65,23 @@ class LabelledFrame:
         """Return the frame's labelled lines of a colour (none if it has none)."""
         return self.lines.get(colour, [])
 
+    def resized(self, factor: float) -> 'LabelledFrame':
+        """
+        Return the labels of this frame resized by a factor (its lines, rows and camera).
+
+        :param factor: the new size over the labelled one.
+        :return: the LabelledFrame of the resized image.
+        """
+        return dataclasses.replace(
+            self, size=tuple(round(value * factor) for value in self.size),
+            horizon_y_px=_resized_px(self.horizon_y_px, factor),
+            lines={colour: [[_resized_point(point, factor) for point in polyline]
+                            for polyline in polylines]
+                   for colour, polylines in self.lines.items()},
+            ignore_rows=tuple((_resized_px(first, factor), _resized_px(last, factor))
+                              for first, last in self.ignore_rows),
+            camera=self.camera and _resized_camera(self.camera, factor))
+
 
 @dataclasses.dataclass(frozen=True)
 class LabelledSource:
@@ -67,6 +91,16 @@ class LabelledSource:
     camera: dict
     line_width_m: dict
     frames: tuple
+
+    def resized(self, factor: float) -> 'LabelledSource':
+        """
+        Return the source with its camera and every frame's labels resized by a factor.
+
+        :param factor: the new image size over the labelled one.
+        :return: the LabelledSource of the resized images.
+        """
+        return dataclasses.replace(self, camera=_resized_camera(self.camera, factor),
+                                   frames=tuple(frame.resized(factor) for frame in self.frames))
 
     def geometry(self, frame: LabelledFrame | None = None) -> CameraGeometry:
         """
@@ -80,6 +114,27 @@ class LabelledSource:
                               cx_px=camera['cx_px'], cy_px=camera['cy_px'],
                               height_m=camera['height_m'],
                               pitch_rad=math.radians(camera['pitch_deg']))
+
+
+def _resized_px(value: float, factor: float) -> float:
+    """Return a pixel coordinate (pixel centres at whole numbers) in the resized image."""
+    return (value + 0.5) * factor - 0.5
+
+
+def _resized_point(point: tuple, factor: float) -> tuple:
+    """Return a labelled line's point (x, y, width, in pixels) in the resized image."""
+    x_px, y_px, width_px = point
+    return _resized_px(x_px, factor), _resized_px(y_px, factor), width_px * factor
+
+
+def _resized_camera(camera: dict, factor: float) -> dict:
+    """Return a camera's calibration for its image resized by a factor (its mounting kept)."""
+    resized = dict(camera)
+    for field in CAMERA_PIXEL_FIELDS:
+        resized[field] = camera[field] * factor
+    for field in CAMERA_CENTRE_FIELDS:
+        resized[field] = _resized_px(camera[field], factor)
+    return resized
 
 
 def load_labels(labels_dir: Path = LABELS_DIR) -> list:
@@ -166,8 +221,8 @@ def frame_line_truths(frame, colour: str, detection, geometry, line_width_m: flo
             for line in group_lines(frame.polylines(colour))]
 
 
-def score_source(source: LabelledSource, frames_dir: Path, colour: str, frames=None,
-                 **overrides) -> tuple:
+def score_source(source: LabelledSource, frames_dir: Path, colour: str, frames=None, *,
+                 size_factor: float = 1.0, **overrides) -> tuple:
     """
     Score the follower's detector on a source's frames for a line colour.
 
@@ -178,16 +233,27 @@ def score_source(source: LabelledSource, frames_dir: Path, colour: str, frames=N
     :param colour: the line colour preset; each frame's lines of that colour are the truth
         (a frame without any is all absent).
     :param frames: the frames to score (default: all the source's).
+    :param size_factor: score each frame reduced to this share of its size (area averaging),
+        with its labels and camera calibration resized to match (see HALF_SIZE); at most 1.
     :param overrides: DetectorConfig fields to change from the defaults.
-    :return: (PerceptionTally, list of FrameResult).
+    :return: (PerceptionTally, list of FrameResult, whose frames are the resized labels).
+    :raises ValueError: for a size factor not in (0, 1].
     """
+    if not 0.0 < size_factor <= 1.0:
+        raise ValueError(f'size_factor must be in (0, 1], got {size_factor}.')
+    frames = source.frames if frames is None else frames
+    if size_factor != 1.0:
+        source = source.resized(size_factor)
+        frames = [frame.resized(size_factor) for frame in frames]
     detector = LineDetector(detector_config(source, colour, **overrides))
     tally = PerceptionTally()
     results = []
-    for frame in frames if frames is not None else source.frames:
+    for frame in frames:
         image = cv2.imread(str(Path(frames_dir) / source.name / frame.name))
         if image is None:
             raise FileNotFoundError(f'Cannot read {frames_dir}/{source.name}/{frame.name}.')
+        if size_factor != 1.0:
+            image = cv2.resize(image, frame.size, interpolation=cv2.INTER_AREA)
         detector.reset()
         geometry = source.geometry(frame)
         detection = detector.detect(image, 'bgr8', geometry)

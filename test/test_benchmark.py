@@ -116,11 +116,13 @@ def test_a_short_benchmark_measures_every_section(tmp_path):
     if real_frames.frames_folder()[0] is None:
         assert 'error' in real
     else:
-        # One row per source and colour labelled in it, each scoring every band of its frames.
-        labelled = {(source.name, colour) for source in real_frames.load_labels()
+        # One row per source and colour labelled in it, each scoring every band of its frames,
+        # as taken and at half size.
+        labelled = [(source.name, colour, size) for size in (1.0, real_frames.HALF_SIZE)
+                    for source in real_frames.load_labels()
                     for colour in real_frames.LABELLED_COLOURS
-                    if any(frame.polylines(colour) for frame in source.frames)}
-        assert {(row['source'], row['colour']) for row in real['rows']} == labelled
+                    if any(frame.polylines(colour) for frame in source.frames)]
+        assert [(row['source'], row['colour'], row['size']) for row in real['rows']] == labelled
         for row in real['rows']:
             assert row['right'] + row['false'] + row['missed'] == row['bands'] > 0
 

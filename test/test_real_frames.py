@@ -8,8 +8,11 @@ Where they are absent the test skips with a one-line reason. The labels are in
 its defaults, with each source's camera and tape width as the robot would be set up.
 """
 
+from pathlib import Path
+
 from followbot_sim import real_frames
 from followbot_sim.perception_score import PerceptionTally
+import numpy as np
 import pytest
 
 # The targets of the perception on real frames (issue 13), per line colour.
@@ -38,7 +41,7 @@ def frames_or_skip():
     return folder
 
 
-def score(folder, colour, wanted) -> tuple:
+def score(folder, colour, wanted, size_factor=1.0) -> tuple:
     """Return the tally of the frames ``wanted(source, frame)`` picks, and their failures."""
     total = PerceptionTally()
     report = []
@@ -47,7 +50,8 @@ def score(folder, colour, wanted) -> tuple:
                   if frame.polylines(colour) and wanted(source, frame)]
         if not frames:
             continue
-        tally, results = real_frames.score_source(source, folder, colour, frames)
+        tally, results = real_frames.score_source(source, folder, colour, frames,
+                                                  size_factor=size_factor)
         total.merge(tally)
         report += [f'{result.frame.name}: {result.verdicts} confidence '
                    f'{result.detection.confidence:.2f}' for result in results
@@ -63,12 +67,19 @@ def assert_targets(total, details):
     assert total.confident_false_frames == 0, details
 
 
+# The frames as taken, and reduced to half their size: the same configuration must hold for a
+# 320x240 camera (its camera_info scaled with it).
+SIZES = {'as-taken': 1.0, 'half-size': real_frames.HALF_SIZE}
+
+
+@pytest.mark.parametrize('size', SIZES)
 @pytest.mark.parametrize('colour', real_frames.LABELLED_COLOURS)
-def test_the_default_follower_finds_the_line_in_real_frames(colour):
+def test_the_default_follower_finds_the_line_in_real_frames(colour, size):
     folder = frames_or_skip()
     sources = TARGET_SOURCES[colour]
     total, details = score(folder, colour, lambda source, frame: (
-        (sources is None or source.name in sources) and frame.name not in NOT_A_ROBOT_VIEW))
+        (sources is None or source.name in sources) and frame.name not in NOT_A_ROBOT_VIEW),
+        SIZES[size])
     assert_targets(total, details)
 
 
@@ -83,3 +94,28 @@ def test_frames_no_robot_camera_takes_are_known_failures(name):
             except AssertionError:
                 pytest.xfail(NOT_A_ROBOT_VIEW[name])
     pytest.fail(f'{name} now meets the targets: count it with the others.')
+
+
+@pytest.mark.parametrize('source', real_frames.load_labels(), ids=lambda source: source.name)
+def test_resized_labels_see_the_floor_where_the_resized_image_does(source):
+    full, half = source.frames[0], source.frames[0].resized(real_frames.HALF_SIZE)
+    assert half.size == tuple(round(value / 2) for value in full.size)
+    # A row's tape width and the horizon, in the resized image, are those of the same place.
+    geometry, resized = source.geometry(full), source.resized(real_frames.HALF_SIZE).geometry(half)
+    rows = [0.75 * full.size[1], full.size[1] - 1.0]
+    assert resized.line_width_px([(row + 0.5) / 2 - 0.5 for row in rows], 0.05) == (
+        pytest.approx(geometry.line_width_px(rows, 0.05) / 2))
+    assert resized.horizon_row_px == pytest.approx((geometry.horizon_row_px + 0.5) / 2 - 0.5)
+    for colour, polylines in full.lines.items():
+        points = [point for polyline in polylines for point in polyline]
+        resized_points = [point for polyline in half.lines[colour] for point in polyline]
+        assert np.array(resized_points) == pytest.approx(np.array(
+            [((x_px + 0.5) / 2 - 0.5, (y_px + 0.5) / 2 - 0.5, width_px / 2)
+             for x_px, y_px, width_px in points]))
+
+
+@pytest.mark.parametrize('size_factor', (0.0, 1.5, -0.5))
+def test_frames_are_only_ever_reduced(size_factor):
+    source = real_frames.load_labels()[0]
+    with pytest.raises(ValueError, match='size_factor must be in'):
+        real_frames.score_source(source, Path('.'), 'yellow', size_factor=size_factor)
