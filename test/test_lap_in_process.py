@@ -12,6 +12,7 @@ from followbot_sim.course import FLOOR_GREY, LINE_RGB, make_course
 from followbot_sim.course_file import load_course
 from followbot_sim.scorecard import END_LAP, run_scenario, Scenario
 import numpy as np
+import pytest
 
 # The robot's centre must stay over the painted line, within half its 0.19 m width of the centre
 # line, for the whole lap: what a person watching calls "following the line".
@@ -26,19 +27,21 @@ BOOK_IMAGE_SIZE_PX = 1024
 PAINT_THRESHOLD = 0.5
 
 
-def lap(context, course: str) -> tuple:
+def lap(context, course: str, sim_parameters=()) -> tuple:
     """
     Run the default follower on a course until it completes a lap.
 
+    :param sim_parameters: further (name, value) simulator parameters.
     :return: the score (the simulator's LapTracker summary and the follower's line
-        statistics) and the course.
+        statistics, and the ``camera`` the simulator rendered) and the course.
     """
     course_model = load_course(course)
     time_limit_s = (LAP_TIME_MARGIN * course_model.length_m
                     / ControllerConfig().linear_speed_mps)
-    run = run_scenario(context, Scenario(course, course), time_limit_s=time_limit_s)
+    run = run_scenario(context, Scenario(course, course), sim_parameters,
+                       time_limit_s=time_limit_s)
     assert run['end_reason'] == END_LAP, run
-    return {**run['lap_tracker'], **run['line_statistics']}, course_model
+    return {**run['lap_tracker'], **run['line_statistics'], 'camera': run['camera']}, course_model
 
 
 def assert_followed_the_line(summary: dict, course) -> None:
@@ -48,8 +51,14 @@ def assert_followed_the_line(summary: dict, course) -> None:
     assert summary['time_off_line_s'] == 0.0, summary
 
 
-def test_follower_laps_the_default_course(ros_context):
-    summary, course = lap(ros_context, 'book_loop')
+@pytest.mark.parametrize('image_size_px', ((640, 480), (320, 240)), ids=('640x480', '320x240'))
+def test_follower_laps_the_default_course(ros_context, image_size_px):
+    # Nothing in the follower's configuration depends on the camera's resolution: a 320x240
+    # camera (a TurtleBot3's, many USB cameras) needs no other parameters.
+    width_px, height_px = image_size_px
+    summary, course = lap(ros_context, 'book_loop',
+                          (('image_width_px', width_px), ('image_height_px', height_px)))
+    assert (summary['camera']['width_px'], summary['camera']['height_px']) == image_size_px
     assert_followed_the_line(summary, course)
     assert summary['lap_times_s'][0] <= TARGET_LAP_TIME_S, summary
     assert summary['rms_distance_from_line_m'] <= TARGET_RMS_DISTANCE_M, summary
