@@ -2,7 +2,7 @@
 
 import json
 
-from conftest import run_domain_id
+from conftest import refusal, run_domain_id
 import cv2
 from followbot_sim.plots import DOTS_PER_INCH, FIGURE_SIZE_IN, plot_lap_times, write_plots
 from followbot_sim.scorecard import main, SAMPLE_PERIOD_S
@@ -93,9 +93,6 @@ def test_runs_without_a_lap_or_figures_still_plot(tmp_path):
 def test_scorecard_refuses_a_plots_folder_it_cannot_make(tmp_path, capsys):
     blocker = tmp_path / 'file'
     blocker.write_text('not a folder')
-    with pytest.raises(SystemExit) as exit_info:
-        main(['--plots', str(blocker / 'plots')])
-    assert exit_info.value.code == 2
-    errors = [line for line in capsys.readouterr().err.splitlines() if 'error:' in line]
-    assert len(errors) == 1 and (f'argument --plots: cannot write the plots into '
-                                 f'{blocker}/plots: Not a directory.') in errors[0]
+    error = refusal(main, ['--plots', str(blocker / 'plots')], capsys)
+    assert (f'argument --plots: cannot write the plots into {blocker}/plots: Not a '
+            'directory.') in error
