@@ -313,9 +313,10 @@ def measure_real_frames(pictures_dir: Path | None = None) -> dict:
     folder, reason = real_frames.frames_folder()
     if folder is None:
         return {'error': reason}
+    sources = real_frames.load_labels()
     rows = []
     for size_factor in (1.0, real_frames.HALF_SIZE):
-        for source in real_frames.load_labels():
+        for source in sources:
             for colour in real_frames.LABELLED_COLOURS:
                 frames = [frame for frame in source.frames if frame.polylines(colour)]
                 if not frames:
